@@ -1,0 +1,7 @@
+"""``python -m engine`` runs the ``odmo`` CLI."""
+
+import sys
+
+from engine.cli import main
+
+sys.exit(main())

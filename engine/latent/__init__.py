@@ -1,0 +1,1 @@
+"""Latent bank: codes, modes (GMM + silhouette), 2D projections and their geometry."""

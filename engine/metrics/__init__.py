@@ -1,0 +1,1 @@
+"""Evaluation: classifier, FID, diversity, multimodality, APD, mode and trajectory metrics."""

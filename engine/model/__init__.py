@@ -1,0 +1,1 @@
+"""The ODMO networks: encoder, trajectory generator, motion generator, losses, baselines."""

@@ -1,0 +1,1 @@
+"""The ODMO Explorer application: state, controller, workers, main window."""

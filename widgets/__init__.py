@@ -1,0 +1,1 @@
+"""Reusable Qt views: take arrays, emit signals; know nothing of models."""
