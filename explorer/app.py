@@ -7,7 +7,5 @@ import sys
 
 def main() -> int:
     """Launch the explorer (placeholder until the app lands)."""
-    print(
-        "odmo-explorer: the explorer window is not built yet; use the `odmo` CLI.", file=sys.stderr
-    )
+    print("odmo-explorer: the explorer window is not built yet; use the `odmo` CLI.", file=sys.stderr)
     return 0

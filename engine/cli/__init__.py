@@ -30,9 +30,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     """Run ``odmo``; returns the exit code (0 ok, 1 bad input, 2 usage, 130 interrupted)."""
     parser = build_parser()
     args = parser.parse_args(argv)
-    logging.basicConfig(
-        level=logging.INFO if args.verbose else logging.WARNING, format="%(message)s"
-    )
+    logging.basicConfig(level=logging.INFO if args.verbose else logging.WARNING, format="%(message)s")
     try:
         return int(args.func(args) or 0)
     except OdmoError as exc:

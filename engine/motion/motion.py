@@ -55,15 +55,11 @@ class Motion:
         if self.local_rotations is not None:
             self.local_rotations = np.asarray(self.local_rotations, dtype=np.float64)
             if self.local_rotations.shape != (t, self.skeleton.n_joints, 4):
-                raise ConfigError(
-                    f"local_rotations must be (T, J, 4), got {self.local_rotations.shape}"
-                )
+                raise ConfigError(f"local_rotations must be (T, J, 4), got {self.local_rotations.shape}")
         if self.root_translation is not None:
             self.root_translation = np.asarray(self.root_translation, dtype=np.float64)
             if self.root_translation.shape != (t, 3):
-                raise ConfigError(
-                    f"root_translation must be (T, 3), got {self.root_translation.shape}"
-                )
+                raise ConfigError(f"root_translation must be (T, 3), got {self.root_translation.shape}")
 
     @property
     def n_frames(self) -> int:

@@ -47,8 +47,7 @@ class Skeleton:
             raise ConfigError("a skeleton needs at least one joint")
         if parents.shape != (n,) or offsets.shape != (n, 3):
             raise ConfigError(
-                f"skeleton sizes disagree: {n} names, {parents.shape[0]} parents, "
-                f"{offsets.shape[0]} offsets"
+                f"skeleton sizes disagree: {n} names, {parents.shape[0]} parents, {offsets.shape[0]} offsets"
             )
         if len(set(names)) != n:
             dup = sorted({x for x in names if names.count(x) > 1})
