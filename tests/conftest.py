@@ -7,7 +7,7 @@ from pathlib import Path
 
 import pytest
 
-pytest_plugins: list[str] = []
+pytest_plugins = ["tests.fixtures.procedural", "tests.fixtures.tiny_model"]
 
 _SHARED_BANDAI = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "bandai-namco-2"
 
