@@ -19,7 +19,7 @@ def apd(motions: np.ndarray) -> float:
 
 
 def n_apd(generated: Mapping[int, np.ndarray], real: Mapping[int, np.ndarray]) -> float:
-    """Mean over actions of APD(generated[a]) / APD(real[a]); each value (N, T, J, 3) motions of one action."""
+    """Mean over actions of APD(generated[a]) / APD(real[a]); values are (N, T, J, 3) motions."""
     ratios = [apd(generated[a]) / apd(real[a]) for a in generated if a in real]
     if not ratios:
         raise ConfigError("n-APD needs at least one action present in both sets")

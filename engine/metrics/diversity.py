@@ -26,7 +26,7 @@ def diversity(features: np.ndarray, rng: np.random.Generator, n_pairs: int = 200
 def multimodality(
     features: np.ndarray, labels: np.ndarray, rng: np.random.Generator, n_pairs: int = 20
 ) -> float:
-    """Mean over actions of the mean distance of ``n_pairs`` random same-action pairs; features (N, F), labels (N,)."""
+    """Mean over actions of mean distance of ``n_pairs`` same-action pairs; features (N, F), labels (N,)."""
     features = np.asarray(features, dtype=np.float64)
     labels = np.asarray(labels).reshape(-1)
     if features.ndim != 2 or len(features) != len(labels):

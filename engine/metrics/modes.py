@@ -25,7 +25,7 @@ def mode_apd(motions: np.ndarray, modes: np.ndarray) -> float:
 
 
 def mode_homogeneity(motions: Mapping[int, np.ndarray], modes: Mapping[int, np.ndarray]) -> float:
-    """100 × mean over actions of (APD − mode-APD) / APD: the relative drop of APD when grouped by mode (%)."""
+    """100 × mean over actions of (APD − mode-APD) / APD: relative drop of APD when grouped by mode (%)."""
     drops = []
     for action, group in motions.items():
         whole = apd(group)

@@ -19,7 +19,7 @@ def mean_ci95(values: Sequence[float] | np.ndarray) -> tuple[float, float]:
 
 
 def summarize(repeats: Sequence[Mapping[str, float]]) -> dict[str, dict[str, float]]:
-    """``{metric: {"mean", "ci95"}}`` over a list of per-repeat ``{metric: value}`` dicts (keys in first-seen order)."""
+    """``{metric: {"mean", "ci95"}}`` over per-repeat ``{metric: value}`` dicts (keys in first-seen order)."""
     names: dict[str, None] = {}
     for rep in repeats:
         names.update(dict.fromkeys(rep))

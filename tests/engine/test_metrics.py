@@ -122,7 +122,7 @@ def test_mode_purity_permuted_and_independent_labels() -> None:
 
 def test_mpjpe_of_a_known_offset() -> None:
     truth = np.random.default_rng(12).normal(size=(2, 7, 5, 3))
-    assert mpjpe(truth + [0.03, 0.04, 0.0], truth) == pytest.approx(0.05)
+    assert mpjpe(truth + np.array([0.03, 0.04, 0.0]), truth) == pytest.approx(0.05)
     mask = np.zeros((2, 7), bool)
     mask[:, :3] = True
     shifted = truth.copy()
