@@ -1,0 +1,367 @@
+"""LatentMap: a 2-D scatter of latent codes with picking, dragging, lasso, overlays and a legend."""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from typing import Literal
+
+import numpy as np
+import pyqtgraph as pg
+from PySide6.QtCore import QPointF, Qt, Signal
+from PySide6.QtGui import QPixmap
+from PySide6.QtWidgets import (
+    QButtonGroup,
+    QCheckBox,
+    QHBoxLayout,
+    QScrollArea,
+    QToolButton,
+    QToolTip,
+    QVBoxLayout,
+    QWidget,
+)
+
+from widgets._colors import ACCENT, FOREGROUND, brushes_for, configure_plot, qcolor, to_rgba8
+
+Tool = Literal["pick", "lasso"]
+
+
+class _PassiveScatter(pg.ScatterPlotItem):
+    """A scatter item that lets clicks through to the view box (which does its own picking)."""
+
+    def mouseClickEvent(self, ev: object) -> None:  # noqa: N802
+        """Ignore the click so the view box receives it."""
+        ev.ignore()  # type: ignore[attr-defined]
+
+
+class _MapViewBox(pg.ViewBox):
+    """A view box that hands clicks, drags and hovers to callbacks before its default pan/zoom."""
+
+    def __init__(
+        self,
+        on_click: Callable[[object], bool],
+        on_drag: Callable[[object], bool],
+        on_hover: Callable[[object], None],
+    ) -> None:
+        super().__init__()
+        self._on_click = on_click
+        self._on_drag = on_drag
+        self._on_hover = on_hover
+
+    def mouseClickEvent(self, ev: object) -> None:  # noqa: N802
+        """Forward the click; fall back to the default (context menu) when unhandled."""
+        if not self._on_click(ev):
+            super().mouseClickEvent(ev)
+
+    def mouseDragEvent(self, ev: object, axis: int | None = None) -> None:  # noqa: N802
+        """Forward the drag; fall back to the default pan when unhandled."""
+        if not self._on_drag(ev):
+            super().mouseDragEvent(ev, axis)
+
+    def hoverEvent(self, ev: object) -> None:  # noqa: N802
+        """Forward the hover."""
+        self._on_hover(ev)
+
+
+class LatentMap(QWidget):
+    """A 2-D map of points (one scatter item) that reports clicks, drags, lassos and hovers.
+
+    Point positions passed to ``set_visible_mask`` / ``set_selection`` are row indices into the
+    arrays given to ``set_points``; signals report the per-point ``ids``.
+    """
+
+    pointClicked = Signal(int)  # noqa: N815
+    emptyClicked = Signal(float, float)  # noqa: N815
+    dragStarted = Signal(int)  # noqa: N815
+    dragMoved = Signal(float, float)  # noqa: N815
+    dragFinished = Signal(float, float)  # noqa: N815
+    lassoFinished = Signal(object)  # noqa: N815
+    hovered = Signal(int)
+    legendToggled = Signal(int, bool)  # noqa: N815
+
+    def __init__(
+        self, parent: QWidget | None = None, *, point_size: float = 6.0, pick_tolerance_px: float = 8.0
+    ) -> None:
+        super().__init__(parent)
+        self._tolerance_px = float(pick_tolerance_px)
+        self._tool: Tool = "pick"
+        self._xy = np.zeros((0, 2))
+        self._ids = np.zeros(0, dtype=np.int64)
+        self._brushes = np.zeros(0, dtype=object)
+        self._tooltips: list[str] = []
+        self._mask = np.zeros(0, dtype=bool)
+        self._groups: np.ndarray | None = None
+        self._hidden_groups: set[int] = set()
+        self._shown = np.zeros(0, dtype=np.int64)
+        self._selection = np.zeros(0, dtype=np.int64)
+        self._hover_row = -1
+        self._dragging = False
+        self._lasso: list[tuple[float, float]] = []
+
+        self.view_box = _MapViewBox(self._handle_click, self._handle_drag, self._handle_hover)
+        self.plot = pg.PlotWidget(viewBox=self.view_box)
+        configure_plot(self.plot)
+        self.view_box.setAspectLocked(False)
+        self.scatter = _PassiveScatter(pxMode=True, size=point_size, pen=None, symbol="o")
+        self._highlight = _PassiveScatter(
+            pxMode=True, size=point_size + 8, pen=pg.mkPen(ACCENT, width=2), brush=None, symbol="o"
+        )
+        self._extra = _PassiveScatter(pxMode=True, size=point_size + 5, pen=pg.mkPen("w"), symbol="d")
+        self._marker = _PassiveScatter(pxMode=True, size=20, pen=pg.mkPen("k"), brush=ACCENT, symbol="star")
+        self._lasso_curve = pg.PlotCurveItem(pen=pg.mkPen(ACCENT, width=1.5, style=Qt.PenStyle.DashLine))
+        self._overlays: list[pg.PlotCurveItem] = []
+        layers = (self.scatter, self._highlight, self._extra, self._marker, self._lasso_curve)
+        for z, item in enumerate(layers):
+            item.setZValue(10 + z)
+            self.view_box.addItem(item)
+
+        self._legend_box = QWidget()
+        self._legend_layout = QVBoxLayout(self._legend_box)
+        self._legend_layout.setContentsMargins(4, 4, 4, 4)
+        self._legend_checks: list[QCheckBox] = []
+        legend_scroll = QScrollArea()
+        legend_scroll.setWidgetResizable(True)
+        legend_scroll.setWidget(self._legend_box)
+        legend_scroll.setMaximumWidth(200)
+        self._legend_scroll = legend_scroll
+        legend_scroll.hide()
+
+        self._tool_group = QButtonGroup(self)
+        tools = QHBoxLayout()
+        for name, tip in (("pick", "Click a point, drag from a point"), ("lasso", "Draw a lasso to select")):
+            button = QToolButton(text=name.capitalize(), checkable=True, toolTip=tip)
+            button.setObjectName(f"tool_{name}")
+            button.setChecked(name == self._tool)
+            button.toggled.connect(lambda on, n=name: on and self.set_tool(n))
+            self._tool_group.addButton(button)
+            tools.addWidget(button)
+        tools.addStretch(1)
+
+        body = QHBoxLayout()
+        body.addWidget(self.plot, 1)
+        body.addWidget(legend_scroll)
+        layout = QVBoxLayout(self)
+        layout.setContentsMargins(0, 0, 0, 0)
+        layout.addLayout(tools)
+        layout.addLayout(body, 1)
+
+    # ----- data ---------------------------------------------------------------------------------
+    def set_points(
+        self, xy: np.ndarray, colors: np.ndarray, ids: np.ndarray, tooltips: Sequence[str] | None = None
+    ) -> None:
+        """Show points ``xy`` (N, 2) coloured by ``colors`` (N, 3|4) and identified by ``ids`` (N,) int."""
+        xy = np.asarray(xy, dtype=np.float64)
+        if xy.ndim != 2 or xy.shape[1] != 2:
+            raise ValueError(f"xy must have shape (N, 2), got {xy.shape}")
+        n = len(xy)
+        ids = np.asarray(ids, dtype=np.int64).reshape(-1)
+        if ids.shape != (n,):
+            raise ValueError(f"ids must have shape ({n},), got {ids.shape}")
+        tips = list(tooltips) if tooltips is not None else [""] * n
+        if len(tips) != n:
+            raise ValueError(f"expected {n} tooltips, got {len(tips)}")
+        self._brushes = brushes_for(to_rgba8(colors, n))
+        self._xy, self._ids, self._tooltips = xy, ids, tips
+        self._mask = np.ones(n, dtype=bool)
+        self._groups = None
+        self._hidden_groups.clear()
+        self._selection = np.zeros(0, dtype=np.int64)
+        self._hover_row = -1
+        self._refresh_points()
+        self._highlight.setData(x=[], y=[])
+        self.view_box.autoRange()
+
+    def set_visible_mask(self, mask: np.ndarray) -> None:
+        """Show only the points where ``mask`` (N,) bool is true."""
+        mask = np.asarray(mask, dtype=bool).reshape(-1)
+        if mask.shape != self._mask.shape:
+            raise ValueError(f"mask must have shape {self._mask.shape}, got {mask.shape}")
+        self._mask = mask
+        self._refresh_points()
+
+    def set_selection(self, indices: Sequence[int] | np.ndarray) -> None:
+        """Highlight the points at row ``indices``."""
+        rows = np.asarray(indices, dtype=np.int64).reshape(-1)
+        if rows.size and (rows.min() < 0 or rows.max() >= len(self._xy)):
+            raise ValueError(f"selection indices must lie in [0, {len(self._xy)})")
+        self._selection = rows
+        self._refresh_selection()
+
+    def set_marker(self, xy: Sequence[float] | np.ndarray | None) -> None:
+        """Mark one position (a decoded point), or remove the marker with None."""
+        if xy is None:
+            self._marker.setData(x=[], y=[])
+            return
+        x, y = np.asarray(xy, dtype=np.float64).reshape(2)
+        self._marker.setData(x=[x], y=[y])
+
+    def set_extra_points(self, xy: np.ndarray | None, colors: np.ndarray | None = None) -> None:
+        """Show extra points ``xy`` (K, 2) (e.g. samples) with ``colors`` (K, 3|4); None clears them."""
+        if xy is None or len(xy) == 0:
+            self._extra.setData(x=[], y=[])
+            return
+        pts = np.asarray(xy, dtype=np.float64).reshape(-1, 2)
+        rgba = to_rgba8(colors, len(pts)) if colors is not None else np.full((len(pts), 4), 255, np.uint8)
+        self._extra.setData(x=pts[:, 0], y=pts[:, 1], brush=brushes_for(rgba))
+
+    def set_overlays(self, curves: Sequence[np.ndarray], colors: Sequence[object] | None = None) -> None:
+        """Draw closed polylines ``curves`` (each (M, 2)), e.g. mode ellipses or hulls, in ``colors``."""
+        for item in self._overlays:
+            self.view_box.removeItem(item)
+        self._overlays = []
+        for i, curve in enumerate(curves):
+            pts = np.asarray(curve, dtype=np.float64).reshape(-1, 2)
+            closed = np.vstack([pts, pts[:1]])
+            color = colors[i] if colors is not None else FOREGROUND
+            item = pg.PlotCurveItem(closed[:, 0], closed[:, 1], pen=pg.mkPen(qcolor(color), width=2))
+            item.setZValue(5)
+            self.view_box.addItem(item)
+            self._overlays.append(item)
+
+    def set_legend(
+        self, names: Sequence[str], colors: Sequence[object], groups: np.ndarray | None = None
+    ) -> None:
+        """Show a legend with checkboxes; given ``groups`` (N,) int, unchecking entry k hides group k."""
+        for check in self._legend_checks:
+            self._legend_layout.removeWidget(check)
+            check.deleteLater()
+        self._legend_checks = []
+        while self._legend_layout.count():
+            self._legend_layout.takeAt(0)
+        if groups is not None:
+            groups = np.asarray(groups, dtype=np.int64).reshape(-1)
+            if groups.shape != self._xy[:, 0].shape:
+                raise ValueError(f"groups must have shape ({len(self._xy)},), got {groups.shape}")
+        self._groups = groups
+        self._hidden_groups.clear()
+        for i, (name, color) in enumerate(zip(names, colors, strict=True)):
+            check = QCheckBox(name)
+            check.setChecked(True)
+            pixmap = QPixmap(12, 12)
+            pixmap.fill(qcolor(color))
+            check.setIcon(pixmap)
+            check.toggled.connect(lambda on, k=i: self._legend_toggled(k, on))
+            self._legend_layout.addWidget(check)
+            self._legend_checks.append(check)
+        self._legend_layout.addStretch(1)
+        self._legend_scroll.setVisible(bool(self._legend_checks))
+        self._refresh_points()
+
+    def legend_checkbox(self, index: int) -> QCheckBox:
+        """The legend checkbox of entry ``index``."""
+        return self._legend_checks[index]
+
+    def set_tool(self, tool: Tool) -> None:
+        """Switch the mouse tool: "pick" (click / drag from a point) or "lasso"."""
+        if tool not in ("pick", "lasso"):
+            raise ValueError(f"unknown tool {tool!r}; expected 'pick' or 'lasso'")
+        self._tool = tool
+        for button in self._tool_group.buttons():
+            button.setChecked(button.objectName() == f"tool_{tool}")
+
+    def tool(self) -> Tool:
+        """The current mouse tool."""
+        return self._tool
+
+    def visible_rows(self) -> np.ndarray:
+        """Row indices of the points currently drawn, (V,) int."""
+        return self._shown.copy()
+
+    def data_to_widget(self, xy: Sequence[float]) -> QPointF:
+        """Position of data point ``xy`` in the plot viewport's pixel coordinates."""
+        scene = self.view_box.mapViewToScene(QPointF(float(xy[0]), float(xy[1])))
+        return QPointF(self.plot.mapFromScene(scene))
+
+    # ----- internals ----------------------------------------------------------------------------
+    def _legend_toggled(self, index: int, on: bool) -> None:
+        if on:
+            self._hidden_groups.discard(index)
+        else:
+            self._hidden_groups.add(index)
+        self._refresh_points()
+        self.legendToggled.emit(index, on)
+
+    def _refresh_points(self) -> None:
+        visible = self._mask
+        if self._groups is not None and self._hidden_groups:
+            visible = visible & ~np.isin(self._groups, list(self._hidden_groups))
+        self._shown = np.flatnonzero(visible)
+        pts = self._xy[self._shown]
+        self.scatter.setData(x=pts[:, 0], y=pts[:, 1], brush=self._brushes[self._shown])
+        self._refresh_selection()
+
+    def _refresh_selection(self) -> None:
+        rows = self._selection[np.isin(self._selection, self._shown)]
+        pts = self._xy[rows]
+        self._highlight.setData(x=pts[:, 0], y=pts[:, 1])
+
+    def _nearest(self, scene_pos: QPointF) -> int:
+        """Row of the drawn point nearest ``scene_pos`` within the pixel tolerance, or -1."""
+        if self._shown.size == 0:
+            return -1
+        pos = self.view_box.mapSceneToView(scene_pos)
+        sx, sy = self.view_box.viewPixelSize()
+        pts = self._xy[self._shown]
+        d2 = ((pts[:, 0] - pos.x()) / sx) ** 2 + ((pts[:, 1] - pos.y()) / sy) ** 2
+        best = int(np.argmin(d2))
+        return int(self._shown[best]) if d2[best] <= self._tolerance_px**2 else -1
+
+    def _handle_click(self, ev: object) -> bool:
+        if ev.button() != Qt.MouseButton.LeftButton or self._tool != "pick":  # type: ignore[attr-defined]
+            return False
+        ev.accept()  # type: ignore[attr-defined]
+        row = self._nearest(ev.scenePos())  # type: ignore[attr-defined]
+        if row >= 0:
+            self.pointClicked.emit(int(self._ids[row]))
+        else:
+            pos = self.view_box.mapSceneToView(ev.scenePos())  # type: ignore[attr-defined]
+            self.emptyClicked.emit(float(pos.x()), float(pos.y()))
+        return True
+
+    def _handle_drag(self, ev: object) -> bool:
+        if ev.button() != Qt.MouseButton.LeftButton:  # type: ignore[attr-defined]
+            return False
+        pos = self.view_box.mapSceneToView(ev.scenePos())  # type: ignore[attr-defined]
+        if self._tool == "lasso":
+            self._lasso_step(ev, (float(pos.x()), float(pos.y())))
+            return True
+        if ev.isStart():  # type: ignore[attr-defined]
+            row = self._nearest(ev.buttonDownScenePos())  # type: ignore[attr-defined]
+            self._dragging = row >= 0
+            if self._dragging:
+                self.dragStarted.emit(int(self._ids[row]))
+        if not self._dragging:
+            return False
+        ev.accept()  # type: ignore[attr-defined]
+        if ev.isFinish():  # type: ignore[attr-defined]
+            self._dragging = False
+            self.dragFinished.emit(float(pos.x()), float(pos.y()))
+        else:
+            self.dragMoved.emit(float(pos.x()), float(pos.y()))
+        return True
+
+    def _lasso_step(self, ev: object, point: tuple[float, float]) -> None:
+        ev.accept()  # type: ignore[attr-defined]
+        if ev.isStart():  # type: ignore[attr-defined]
+            start = self.view_box.mapSceneToView(ev.buttonDownScenePos())  # type: ignore[attr-defined]
+            self._lasso = [(float(start.x()), float(start.y()))]
+        self._lasso.append(point)
+        path = np.asarray(self._lasso + self._lasso[:1])
+        self._lasso_curve.setData(path[:, 0], path[:, 1])
+        if ev.isFinish():  # type: ignore[attr-defined]
+            polygon = np.asarray(self._lasso, dtype=np.float64)
+            self._lasso = []
+            self._lasso_curve.setData([], [])
+            if len(polygon) >= 3:
+                self.lassoFinished.emit(polygon)
+
+    def _handle_hover(self, ev: object) -> None:
+        row = -1 if ev.isExit() else self._nearest(ev.scenePos())  # type: ignore[attr-defined]
+        if row == self._hover_row:
+            return
+        self._hover_row = row
+        if row >= 0 and self._tooltips[row]:
+            widget_pos = self.plot.mapFromScene(ev.scenePos())  # type: ignore[attr-defined]
+            QToolTip.showText(self.plot.viewport().mapToGlobal(widget_pos), self._tooltips[row], self.plot)
+        else:
+            QToolTip.hideText()
+        self.hovered.emit(int(self._ids[row]) if row >= 0 else -1)
