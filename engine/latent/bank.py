@@ -1,0 +1,213 @@
+"""The latent bank: every training code with its action, end location, source, modes and 2D maps."""
+
+from __future__ import annotations
+
+import io
+import json
+import logging
+import zipfile
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from engine.errors import CancelledError, ConfigError, ModelFormatError
+from engine.fileio import atomic_write_bytes
+from engine.latent.geometry import idw_blend
+from engine.latent.modes import ModeModel, discover_modes
+from engine.latent.projection import Projection, make_projection
+
+log = logging.getLogger(__name__)
+
+FORMAT = "odmo-latent-bank"
+FORMAT_VERSION = 1
+
+
+@dataclass
+class LatentBank:
+    """Codes of the training clips and what was learned from them.
+
+    Attributes
+    ----------
+    codes : (N, D) float32; actions : (N,) int64 indices into ``action_names``.
+    ends : (N, 3) float32 end locations; sources : (N,) str clip names.
+    meta : N dicts of extra clip information (e.g. style), never used in training.
+    modes : action index -> its modes (actions without codes have none).
+    projections : "pca" | "tsne" | "umap" -> a fitted map of all N codes.
+    """
+
+    codes: np.ndarray
+    actions: np.ndarray
+    action_names: list[str]
+    ends: np.ndarray
+    sources: np.ndarray
+    meta: list[dict[str, Any]]
+    modes: dict[int, ModeModel] = field(default_factory=dict)
+    projections: dict[str, Projection] = field(default_factory=dict)
+
+    def indices_of(self, action: int) -> np.ndarray:
+        """(n,) indices of the codes of one action."""
+        if not 0 <= int(action) < len(self.action_names):
+            raise ConfigError(f"unknown action {action}; the bank has {len(self.action_names)} actions")
+        return np.flatnonzero(self.actions == int(action))
+
+    def end_location(self, codes: np.ndarray, action: int, k: int = 8) -> np.ndarray:
+        """End locations (M, 3) for codes (M, D): a continuous distance-weighted blend of the k nearest codes
+        of that action (a bank code gets exactly its own end)."""
+        idx = self.indices_of(action)
+        if len(idx) == 0:
+            raise ConfigError(f"action {self.action_names[int(action)]!r} has no codes in the bank")
+        x = np.asarray(codes, dtype=np.float64)
+        if x.ndim == 1:
+            x = x[None]
+        if x.ndim != 2 or x.shape[1] != self.codes.shape[1]:
+            raise ConfigError(f"codes must have shape (M, {self.codes.shape[1]}), got {np.shape(codes)}")
+        return idw_blend(x, self.codes[idx], self.ends[idx], k).astype(np.float32)
+
+    def save(self, path: str | Path) -> None:
+        """Write the bank to one .npz file atomically (plain arrays only; meta as JSON strings)."""
+        arrays: dict[str, np.ndarray] = {
+            "format": np.asarray(FORMAT),
+            "version": np.asarray(FORMAT_VERSION, dtype=np.int64),
+            "codes": np.asarray(self.codes, dtype=np.float32),
+            "actions": np.asarray(self.actions, dtype=np.int64),
+            "action_names": np.asarray(self.action_names, dtype=np.str_),
+            "ends": np.asarray(self.ends, dtype=np.float32),
+            "sources": np.asarray(self.sources, dtype=np.str_),
+            "meta": np.asarray([json.dumps(m, sort_keys=True) for m in self.meta], dtype=np.str_),
+            "mode_actions": np.asarray(sorted(self.modes), dtype=np.int64),
+            "projection_names": np.asarray(sorted(self.projections), dtype=np.str_),
+        }
+        for action, model in self.modes.items():
+            arrays.update(model.to_arrays(f"modes/{action}/"))
+        for name, projection in self.projections.items():
+            arrays.update(projection.to_arrays(f"projections/{name}/"))
+        buffer = io.BytesIO()
+        np.savez(buffer, **arrays)
+        atomic_write_bytes(path, buffer.getvalue())
+        log.info("saved latent bank of %d codes to %s", len(self.codes), path)
+
+    @classmethod
+    def load(cls, path: str | Path) -> LatentBank:
+        """Read a bank written by :meth:`save`; ModelFormatError for missing, corrupt or newer files."""
+        try:
+            with np.load(path, allow_pickle=False) as npz:
+                arrays = {key: npz[key] for key in npz.files}
+        except FileNotFoundError as exc:
+            raise ModelFormatError(f"{path}: latent bank not found") from exc
+        except (OSError, ValueError, EOFError, zipfile.BadZipFile, KeyError) as exc:
+            raise ModelFormatError(f"{path}: not a readable latent bank ({exc})") from exc
+        try:
+            return cls._from_arrays(arrays)
+        except KeyError as exc:
+            raise ModelFormatError(f"{path}: latent bank is missing {exc.args[0]!r}") from exc
+        except ModelFormatError as exc:
+            raise ModelFormatError(f"{path}: {exc}") from exc
+        except (TypeError, ValueError) as exc:
+            raise ModelFormatError(f"{path}: malformed latent bank ({exc})") from exc
+
+    @classmethod
+    def _from_arrays(cls, arrays: dict[str, np.ndarray]) -> LatentBank:
+        """Validate and assemble the arrays of a bank file."""
+        if str(arrays["format"]) != FORMAT:
+            raise ModelFormatError(f"not a latent bank (format {str(arrays['format'])!r})")
+        version = int(arrays["version"])
+        if version > FORMAT_VERSION:
+            raise ModelFormatError(
+                f"latent bank format {version} is newer than this program's ({FORMAT_VERSION}); upgrade"
+            )
+        if version < 1:
+            raise ModelFormatError(f"invalid latent bank format version {version}")
+        bank = cls(
+            codes=arrays["codes"],
+            actions=arrays["actions"],
+            action_names=[str(name) for name in arrays["action_names"]],
+            ends=arrays["ends"],
+            sources=arrays["sources"],
+            meta=[json.loads(str(m)) for m in arrays["meta"]],
+            modes={int(a): ModeModel.from_arrays(f"modes/{int(a)}/", arrays) for a in arrays["mode_actions"]},
+            projections={
+                str(n): Projection.from_arrays(f"projections/{n}/", arrays)
+                for n in arrays["projection_names"]
+            },
+        )
+        _validate(bank, ModelFormatError)
+        return bank
+
+
+def _validate(bank: LatentBank, error: type[Exception]) -> None:
+    """Raise ``error`` unless the bank's arrays agree in length and range."""
+    n = len(bank.codes)
+    if bank.codes.ndim != 2:
+        raise error(f"codes must be (N, D), got {bank.codes.shape}")
+    if bank.actions.shape != (n,) or bank.ends.shape != (n, 3) or bank.sources.shape != (n,):
+        raise error(
+            f"{n} codes but actions {bank.actions.shape}, ends {bank.ends.shape}, "
+            f"sources {bank.sources.shape}"
+        )
+    if len(bank.meta) != n:
+        raise error(f"{n} codes but {len(bank.meta)} meta entries")
+    if n and (bank.actions.min() < 0 or bank.actions.max() >= len(bank.action_names)):
+        raise error(f"action indices must be in 0..{len(bank.action_names) - 1}")
+    if not (np.all(np.isfinite(bank.codes)) and np.all(np.isfinite(bank.ends))):
+        raise error("codes and ends must be finite")
+    for name, projection in bank.projections.items():
+        if projection.embedding_ is None or projection.embedding_.shape != (n, 2):
+            raise error(f"projection {name!r} does not map all {n} codes")
+    for action, model in bank.modes.items():
+        if not 0 <= action < len(bank.action_names):
+            raise error(f"modes for unknown action {action}")
+        if len(model.labels) != int(np.sum(bank.actions == action)):
+            raise error(f"modes of action {action} label {len(model.labels)} codes")
+
+
+def build_bank(
+    codes: np.ndarray,
+    actions: np.ndarray,
+    ends: np.ndarray,
+    sources: Sequence[str],
+    meta: Sequence[dict[str, Any]],
+    action_names: Sequence[str],
+    *,
+    k_range: tuple[int, int] = (3, 11),
+    projections: Sequence[str] = ("pca", "tsne", "umap"),
+    seed: int = 0,
+    progress: Callable[[str, float], None] | None = None,
+    cancel: Callable[[], bool] | None = None,
+) -> LatentBank:
+    """Discover each action's modes and fit the 2D maps of codes (N, D); progress(message, fraction 0..1)."""
+    bank = LatentBank(
+        codes=np.asarray(codes, dtype=np.float32),
+        actions=np.asarray(actions, dtype=np.int64),
+        action_names=[str(name) for name in action_names],
+        ends=np.asarray(ends, dtype=np.float32),
+        sources=np.asarray(list(sources), dtype=np.str_),
+        meta=[dict(m) for m in meta],
+    )
+    _validate(bank, ConfigError)
+    maps = {name: make_projection(name, seed=seed) for name in projections}
+    present = [int(a) for a in np.unique(bank.actions)]
+    steps = len(present) + len(projections)
+    done = 0
+
+    def step(message: str) -> None:
+        nonlocal done
+        if cancel is not None and cancel():
+            raise CancelledError("building the latent bank was cancelled")
+        if progress is not None:
+            progress(message, done / steps if steps else 1.0)
+        done += 1
+
+    for action in present:
+        step(f"modes of {bank.action_names[action]}")
+        bank.modes[action] = discover_modes(bank.codes[bank.indices_of(action)], k_range=k_range, seed=seed)
+    for name, projection in maps.items():
+        step(f"{name} map")
+        bank.projections[name] = projection.fit(bank.codes)
+    if cancel is not None and cancel():
+        raise CancelledError("building the latent bank was cancelled")
+    if progress is not None:
+        progress("done", 1.0)
+    return bank

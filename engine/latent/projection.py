@@ -1,0 +1,263 @@
+"""2D maps of the latent codes (PCA, t-SNE, UMAP) with forward and inverse transforms, stored without pickles.
+
+Every projection keeps the codes it was fit on (``codes_``) and their 2D positions (``embedding_``).
+Where a map has no exact inverse (or forward map, for t-SNE) the missing direction is a continuous
+inverse-distance-weighted blend of the k nearest neighbours (:func:`engine.latent.geometry.idw_blend`).
+
+``inverse_transform(points2d, codes_ref)``: when reference codes (M, D) are given, each result keeps what
+the map cannot show of its reference code: x = inverse(p) + (ref − inverse(transform(ref))), so that
+``inverse_transform(transform(ref), ref) == ref`` and a drag that starts on a code starts exactly at it.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+from typing import Any, ClassVar, Self
+
+import numpy as np
+from sklearn.decomposition import PCA
+from sklearn.manifold import TSNE
+
+from engine.errors import ConfigError, ModelFormatError
+from engine.latent.geometry import idw_blend
+
+log = logging.getLogger(__name__)
+
+
+class Projection:
+    """Base class: a fitted 2D map of latent codes (sklearn estimator convention)."""
+
+    name: ClassVar[str] = ""
+    registry: ClassVar[dict[str, type[Projection]]] = {}
+    state_keys: ClassVar[tuple[str, ...]] = ()  # names of the arrays _state() returns
+
+    def __init__(self, seed: int = 0, k: int = 8):
+        self.seed = seed
+        self.k = k
+        self.codes_: np.ndarray | None = None
+        self.embedding_: np.ndarray | None = None
+
+    def __init_subclass__(cls, **kwargs: Any):
+        super().__init_subclass__(**kwargs)
+        Projection.registry[cls.name] = cls
+
+    def params(self) -> dict[str, Any]:
+        """Constructor parameters (JSON-serialisable)."""
+        return {"seed": self.seed, "k": self.k}
+
+    def fit(self, codes: np.ndarray) -> Self:
+        """Fit the map to codes (N, D); sets ``codes_`` and ``embedding_`` (N, 2)."""
+        x = np.asarray(codes)
+        if x.ndim != 2 or len(x) < 3 or x.shape[1] < 2:
+            raise ConfigError(f"a {self.name} map needs codes of shape (N >= 3, D >= 2), got {x.shape}")
+        if not np.all(np.isfinite(x)):
+            raise ConfigError("codes contain NaN or infinite values")
+        self.codes_ = x
+        self.embedding_ = np.asarray(self._fit(x.astype(np.float64)), dtype=np.float64)
+        return self
+
+    def _fit(self, x: np.ndarray) -> np.ndarray:
+        """Fit on float64 codes (N, D) and return the embedding (N, 2)."""
+        raise NotImplementedError
+
+    def _fitted(self) -> tuple[np.ndarray, np.ndarray]:
+        """(codes_, embedding_), or ConfigError when not fitted."""
+        if self.codes_ is None or self.embedding_ is None:
+            raise ConfigError(f"the {self.name} projection is not fitted")
+        return self.codes_, self.embedding_
+
+    def _check(self, values: np.ndarray, width: int, what: str) -> np.ndarray:
+        """``values`` as float64 (M, width), or ConfigError."""
+        array = np.asarray(values, dtype=np.float64)
+        if array.ndim == 1 and array.shape == (width,):
+            array = array[None]
+        if array.ndim != 2 or array.shape[1] != width:
+            raise ConfigError(f"{what} must have shape (M, {width}), got {array.shape}")
+        if not np.all(np.isfinite(array)):
+            raise ConfigError(f"{what} contain NaN or infinite values")
+        return array
+
+    def transform(self, codes: np.ndarray) -> np.ndarray:
+        """Map codes (M, D) to the plane (M, 2)."""
+        fit_codes, _ = self._fitted()
+        return self._transform(self._check(codes, fit_codes.shape[1], "codes"))
+
+    def _transform(self, x: np.ndarray) -> np.ndarray:
+        """Default forward map: blend of the k nearest fit codes' embeddings."""
+        fit_codes, embedding = self._fitted()
+        return idw_blend(x, fit_codes, embedding, self.k)
+
+    def inverse_transform(self, points2d: np.ndarray, codes_ref: np.ndarray | None = None) -> np.ndarray:
+        """Codes (M, D) of plane points (M, 2); ``codes_ref`` (M, D) keeps their off-map part (see module)."""
+        fit_codes, _ = self._fitted()
+        points = self._check(points2d, 2, "points")
+        codes = self._inverse(points)
+        if codes_ref is not None:
+            ref = self._check(codes_ref, fit_codes.shape[1], "reference codes")
+            if len(ref) != len(points):
+                raise ConfigError(f"{len(points)} points but {len(ref)} reference codes")
+            codes = codes + (ref - self._inverse(self._transform(ref)))
+        return codes
+
+    def _inverse(self, points: np.ndarray) -> np.ndarray:
+        """Default inverse: blend of the codes whose embeddings are nearest."""
+        fit_codes, embedding = self._fitted()
+        return idw_blend(points, embedding, fit_codes, self.k)
+
+    def to_arrays(self, prefix: str) -> dict[str, np.ndarray]:
+        """Fitted state as plain arrays under keys starting with ``prefix``."""
+        fit_codes, embedding = self._fitted()
+        return {
+            f"{prefix}name": np.asarray(self.name),
+            f"{prefix}params": np.asarray(json.dumps(self.params())),
+            f"{prefix}codes": fit_codes,
+            f"{prefix}embedding": embedding,
+            **{f"{prefix}{key}": value for key, value in self._state().items()},
+        }
+
+    def _state(self) -> dict[str, np.ndarray]:
+        """Learned arrays beyond codes and embedding."""
+        return {}
+
+    def _restore(self, state: dict[str, np.ndarray]) -> None:
+        """Set learned attributes from :meth:`_state` arrays."""
+
+    @classmethod
+    def from_arrays(cls, prefix: str, arrays: dict[str, np.ndarray]) -> Projection:
+        """Rebuild a projection from :meth:`to_arrays` output; ModelFormatError when malformed."""
+        try:
+            name = str(arrays[f"{prefix}name"])
+            params = json.loads(str(arrays[f"{prefix}params"]))
+            subclass = Projection.registry[name]
+            projection = subclass(**params)
+            codes = np.asarray(arrays[f"{prefix}codes"])
+            embedding = np.asarray(arrays[f"{prefix}embedding"])
+            state_keys = subclass.state_keys
+            projection._restore({key: np.asarray(arrays[f"{prefix}{key}"]) for key in state_keys})
+        except KeyError as exc:
+            raise ModelFormatError(f"projection {prefix!r} is missing {exc.args[0]!r}") from exc
+        except (TypeError, ValueError) as exc:
+            raise ModelFormatError(f"projection {prefix!r} is malformed: {exc}") from exc
+        if cls is not Projection and not isinstance(projection, cls):
+            raise ModelFormatError(f"projection {prefix!r} is {name!r}, not {cls.name!r}")
+        if codes.ndim != 2 or embedding.shape != (len(codes), 2):
+            raise ModelFormatError(
+                f"projection {prefix!r}: codes {codes.shape} and embedding {embedding.shape}"
+            )
+        projection.codes_, projection.embedding_ = codes, embedding
+        return projection
+
+
+class PCAProjection(Projection):
+    """The first two principal components; inverse fills the other dimensions from nearby codes.
+
+    inverse(p) = mean + Cᵀp + (I − CᵀC)(local − mean), ``local`` being the blend of the codes whose
+    embeddings are nearest p, so the result projects exactly onto p.
+    """
+
+    name = "pca"
+    state_keys = ("components", "mean", "explained_variance_ratio")
+
+    def __init__(self, seed: int = 0, k: int = 8):
+        super().__init__(seed, k)
+        self.components_: np.ndarray | None = None
+        self.mean_: np.ndarray | None = None
+        self.explained_variance_ratio_: np.ndarray | None = None
+
+    def _fit(self, x: np.ndarray) -> np.ndarray:
+        pca = PCA(n_components=2, svd_solver="full", random_state=self.seed).fit(x)
+        self.components_, self.mean_ = pca.components_, pca.mean_
+        self.explained_variance_ratio_ = pca.explained_variance_ratio_
+        return self._transform(x)
+
+    def _transform(self, x: np.ndarray) -> np.ndarray:
+        return (x - self.mean_) @ self.components_.T
+
+    def _inverse(self, points: np.ndarray) -> np.ndarray:
+        local = super()._inverse(points)
+        offset = local - self.mean_
+        off_plane = offset - (offset @ self.components_.T) @ self.components_
+        return self.mean_ + points @ self.components_ + off_plane
+
+    def _state(self) -> dict[str, np.ndarray]:
+        return {
+            "components": self.components_,
+            "mean": self.mean_,
+            "explained_variance_ratio": self.explained_variance_ratio_,
+        }
+
+    def _restore(self, state: dict[str, np.ndarray]) -> None:
+        self.components_ = state["components"].astype(np.float64)
+        self.mean_ = state["mean"].astype(np.float64)
+        self.explained_variance_ratio_ = state["explained_variance_ratio"].astype(np.float64)
+        if self.components_.ndim != 2 or self.components_.shape[0] != 2:
+            raise ValueError(f"components have shape {self.components_.shape}")
+        if self.mean_.shape != (self.components_.shape[1],):
+            raise ValueError(f"mean has shape {self.mean_.shape}")
+
+
+class TSNEProjection(Projection):
+    """sklearn's t-SNE (seeded); new codes are placed, and points inverted, by neighbour blends."""
+
+    name = "tsne"
+
+    def __init__(self, seed: int = 0, k: int = 8, perplexity: float = 30.0):
+        super().__init__(seed, k)
+        self.perplexity = perplexity
+
+    def params(self) -> dict[str, Any]:
+        return {**super().params(), "perplexity": self.perplexity}
+
+    def _fit(self, x: np.ndarray) -> np.ndarray:
+        perplexity = min(self.perplexity, (len(x) - 1) / 3.0)
+        tsne = TSNE(n_components=2, perplexity=perplexity, init="pca", random_state=self.seed)
+        return tsne.fit_transform(x)
+
+
+class UMAPProjection(Projection):
+    """umap-learn's UMAP (seeded, imported lazily).
+
+    While the fitted umap model is in memory (``model_``), transform and inverse_transform are umap's own.
+    The model (numba graphs, a nearest-neighbour index) cannot be stored without pickle, so a loaded
+    projection keeps codes and embedding only and uses the neighbour blends, as t-SNE does.
+    """
+
+    name = "umap"
+
+    def __init__(self, seed: int = 0, k: int = 8, n_neighbors: int = 15, min_dist: float = 0.1):
+        super().__init__(seed, k)
+        self.n_neighbors = n_neighbors
+        self.min_dist = min_dist
+        self.model_: Any = None
+
+    def params(self) -> dict[str, Any]:
+        return {**super().params(), "n_neighbors": self.n_neighbors, "min_dist": self.min_dist}
+
+    def _fit(self, x: np.ndarray) -> np.ndarray:
+        import umap  # lazy: importing umap compiles numba code
+
+        self.model_ = umap.UMAP(
+            n_components=2,
+            n_neighbors=min(self.n_neighbors, len(x) - 1),
+            min_dist=self.min_dist,
+            random_state=self.seed,
+        ).fit(x)
+        return self.model_.embedding_
+
+    def _transform(self, x: np.ndarray) -> np.ndarray:
+        if self.model_ is None:
+            return super()._transform(x)
+        return np.asarray(self.model_.transform(x), dtype=np.float64)
+
+    def _inverse(self, points: np.ndarray) -> np.ndarray:
+        if self.model_ is None:
+            return super()._inverse(points)
+        return np.asarray(self.model_.inverse_transform(points), dtype=np.float64)
+
+
+def make_projection(name: str, seed: int = 0, **kw: Any) -> Projection:
+    """An unfitted projection by name: "pca", "tsne" or "umap"."""
+    if name not in Projection.registry:
+        raise ConfigError(f"unknown projection {name!r}; expected one of {sorted(Projection.registry)}")
+    return Projection.registry[name](seed=seed, **kw)
