@@ -1,0 +1,118 @@
+"""SkeletonViewport: pixels move when poses change, layouts, decorations, clean close."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import pyvista as pv
+from PySide6.QtWidgets import QApplication
+
+from widgets.viewport import SkeletonViewport
+
+PARENTS = np.array([-1, 0, 1, 0, 0, 1])
+POSE = np.array(
+    [[0.0, 1.0, 0.0], [0.0, 1.5, 0.0], [0.0, 1.8, 0.0], [-0.2, 0.0, 0.0], [0.2, 0.0, 0.0], [0.5, 1.4, 0.0]],
+    dtype=np.float32,
+)
+
+
+@pytest.fixture
+def viewport(show) -> SkeletonViewport:
+    """A shown viewport with one skeleton in the rest pose."""
+    widget = SkeletonViewport()
+    widget.set_skeletons(PARENTS, 1)
+    widget.set_poses(POSE[None])
+    show(widget, 480, 400)
+    widget.reset_camera()
+    widget.render_now()
+    return widget
+
+
+def _screenshot(widget: SkeletonViewport) -> np.ndarray:
+    widget.render_now()
+    return np.asarray(widget.plotter.screenshot(return_img=True), dtype=np.int16)
+
+
+def test_set_poses_moves_rendered_skeleton(viewport: SkeletonViewport) -> None:
+    before = _screenshot(viewport)
+    assert before.std() > 5, "the view shows structure (skeleton, floor), not a flat colour"
+    viewport.set_poses((POSE + np.array([0.6, 0.0, 0.0], dtype=np.float32))[None])
+    after = _screenshot(viewport)
+    changed = np.any(np.abs(after - before) > 30, axis=2)
+    assert changed.mean() > 0.002, "the skeleton's pixels moved"
+    np.testing.assert_allclose(viewport.skeleton_points()[0, 0], [0.6, 1.0, 0.0], atol=1e-6)
+
+
+def test_widget_grab_includes_the_3d_view(viewport: SkeletonViewport) -> None:
+    QApplication.processEvents()
+    image = viewport.grab().toImage()
+    pixels = np.array(
+        [
+            [image.pixelColor(x, y).value() for x in range(0, image.width(), 4)]
+            for y in range(0, image.height(), 4)
+        ]
+    )
+    assert pixels.std() > 5 and len(np.unique(pixels)) > 10
+
+
+def test_side_by_side_layout_offsets_skeletons(viewport: SkeletonViewport) -> None:
+    viewport.set_skeletons(PARENTS, 3)
+    viewport.set_poses(np.repeat(POSE[None], 3, axis=0))
+    viewport.set_layout("side_by_side", spacing=1.5)
+    np.testing.assert_allclose(viewport.skeleton_points()[:, 0, 0], [-1.5, 0.0, 1.5], atol=1e-6)
+    viewport.set_layout("overlay")
+    np.testing.assert_allclose(viewport.skeleton_points()[:, 0, 0], [0.0, 0.0, 0.0], atol=1e-6)
+    with pytest.raises(ValueError, match="shape"):
+        viewport.set_poses(POSE[None])
+
+
+def test_follow_moves_camera_with_root(viewport: SkeletonViewport) -> None:
+    viewport.set_follow(True)
+    viewport.set_poses(POSE[None])
+    focal = np.asarray(viewport.plotter.camera.focal_point)
+    viewport.set_poses((POSE + np.array([1.0, 0.3, -2.0], dtype=np.float32))[None])
+    np.testing.assert_allclose(
+        np.asarray(viewport.plotter.camera.focal_point) - focal, [1.0, 0.0, -2.0], atol=1e-6
+    )
+    viewport.set_follow(False)
+    viewport.set_poses(POSE[None])
+    np.testing.assert_allclose(
+        np.asarray(viewport.plotter.camera.focal_point) - focal, [1.0, 0.0, -2.0], atol=1e-6
+    )
+
+
+def test_decorations_draw_and_clear(viewport: SkeletonViewport) -> None:
+    before = _screenshot(viewport)
+    path = np.c_[np.linspace(0, 1.5, 20), np.zeros(20), np.linspace(0, 1.0, 20)]
+    viewport.set_trajectory(path)
+    viewport.set_end_marker((1.5, 0.0, 1.0))
+    viewport.set_ghosts(np.stack([POSE + np.array([dx, 0.0, 0.0]) for dx in (-0.8, -0.4)]).astype(np.float32))
+    decorated = _screenshot(viewport)
+    assert np.any(np.abs(decorated - before) > 30, axis=2).mean() > 0.002
+    viewport.set_trajectory(None)
+    viewport.set_end_marker(None)
+    viewport.set_ghosts(None)
+    cleared = _screenshot(viewport)
+    assert np.abs(cleared - before).max() <= 2
+    with pytest.raises(ValueError, match="ghost"):
+        viewport.set_ghosts(np.zeros((2, 3, 3)))
+
+
+def test_close_finalises_plotter_without_leaks(qtbot) -> None:
+    open_before = len(pv.plotting.plotter._ALL_PLOTTERS)
+    widget = SkeletonViewport()
+    qtbot.addWidget(widget)
+    widget.set_skeletons(PARENTS, 2)
+    widget.show()
+    qtbot.waitExposed(widget)
+    assert len(pv.plotting.plotter._ALL_PLOTTERS) == open_before + 1
+    widget.close()
+    QApplication.processEvents()
+    assert widget.plotter._closed
+    assert len(pv.plotting.plotter._ALL_PLOTTERS) == open_before
+    assert not any(w.isVisible() for w in QApplication.topLevelWidgets())
+
+
+def test_bad_parents_rejected(viewport: SkeletonViewport) -> None:
+    with pytest.raises(ValueError, match="tree"):
+        viewport.set_skeletons([0, 0, 1], 1)
