@@ -1,0 +1,377 @@
+"""Dataset folders: labelled clips from a folder, with a content-hash cache of parsed clips.
+
+Layouts
+-------
+- Bandai-Namco (detected by ``cfg/content_label.txt`` and ``data/*.bvh``): the action is the
+  content name of each clip's JSON sidecar ``{"content": id, "style": id}`` (names from
+  ``cfg/content_label.txt`` without the ``dataset-2_`` prefix, in id order); the style goes to
+  ``meta["style"]`` only. ``drop_joints`` defaults to ``("joint_Root",)``, the ground-projected
+  root, so clips have 21 body joints with ``Hips`` as root.
+- HumanAct12 (``.npy`` files named like ``P01G01R01F0069T0143A0102.npy``): coarse class from the
+  name (see :mod:`engine.motion.humanact12`), SMPL-24 skeleton, 20 fps.
+- Any other folder of ``.bvh`` / ``.npz`` / ``.npy`` files: labels from ``pattern`` (a regex
+  searched in the file name, with a named group ``action``; other named groups go to meta) or
+  from a ``labels`` sidecar: CSV with a header ``file,action[,style,...]`` or JSON mapping a file
+  name to an action or to ``{"action": ..., "style": ...}``. Clips without a label are skipped
+  (logged); a folder with no labelled clip raises DataError.
+
+Clips carry joint positions only (no local rotations). An unreadable clip raises DataError
+naming the file (``on_error="raise"``, the default) or is skipped with a logged warning
+(``on_error="skip"``). Parsed clips are cached in one file per folder under ``$ODMO_CACHE_DIR``
+(default ``~/.cache/odmo-explorer``), keyed by each file's content hash.
+"""
+
+from __future__ import annotations
+
+import csv
+import hashlib
+import json
+import logging
+import os
+import re
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from engine.errors import CancelledError, ConfigError, DataError, OdmoError
+from engine.fileio import atomic_write
+from engine.motion.motion import Motion
+from engine.motion.skeleton import Skeleton
+
+log = logging.getLogger(__name__)
+
+CACHE_VERSION = 1
+BANDAI_DROP_JOINTS = ("joint_Root",)
+_MOTION_SUFFIXES = (".bvh", ".npz", ".npy")
+_BANDAI_PREFIX = re.compile(r"^dataset-\d+_")
+
+
+@dataclass(eq=False)
+class Dataset:
+    """Labelled clips of one folder, all on one skeleton topology.
+
+    Parameters
+    ----------
+    clips : the clips, each with ``action`` and ``meta["source"]`` (path relative to ``root``),
+        ``meta["style"]`` where known.
+    action_names : the actions, in the folder's id order (Bandai) or sorted.
+    root : the folder.
+    fingerprint : hash of the clip contents and labels, for model provenance.
+    skeleton : the first clip's skeleton (every clip has the same joint names and parents).
+    """
+
+    clips: list[Motion]
+    action_names: list[str]
+    root: Path
+    fingerprint: str
+    skeleton: Skeleton
+    layout: str = "generic"
+    skipped: list[str] = field(default_factory=list)
+
+    def __len__(self) -> int:
+        """Number of clips."""
+        return len(self.clips)
+
+
+@dataclass(frozen=True)
+class _Entry:
+    """One clip file to load: its path, label and metadata."""
+
+    path: Path
+    action: str
+    meta: dict[str, Any]
+
+
+def load_folder(
+    path: str | Path,
+    pattern: str | None = None,
+    labels: str | Path | None = None,
+    cache: bool = True,
+    progress: Callable[[int, int], None] | None = None,
+    cancel: Callable[[], bool] | None = None,
+    limit: int | None = None,
+    drop_joints: Sequence[str] | None = None,
+    on_error: str = "raise",
+) -> Dataset:
+    """Load the labelled clips of a dataset folder (Bandai-Namco, HumanAct12 or pattern/sidecar labels)."""
+    root = Path(path).expanduser().resolve()
+    if not root.is_dir():
+        raise DataError(f"{root}: not a folder")
+    if on_error not in ("raise", "skip"):
+        raise ConfigError(f"on_error must be 'raise' or 'skip', got {on_error!r}")
+    if _is_bandai(root) and pattern is None and labels is None:
+        layout, (entries, action_names) = "bandai", _bandai_entries(root)
+        drop = BANDAI_DROP_JOINTS if drop_joints is None else tuple(drop_joints)
+    else:
+        layout, (entries, action_names) = "generic", _generic_entries(root, pattern, labels)
+        drop = () if drop_joints is None else tuple(drop_joints)
+    if limit is not None:
+        entries = entries[: max(0, int(limit))]
+    if not entries:
+        raise DataError(f"{root}: no labelled clips")
+
+    store = _Cache(root) if cache else None
+    clips: list[Motion] = []
+    skipped: list[str] = []
+    digests: list[str] = []
+    for i, entry in enumerate(entries):
+        if cancel is not None and cancel():
+            raise CancelledError(f"loading {root} cancelled after {i} of {len(entries)} clips")
+        try:
+            digest, motion = _load_clip(entry, store)
+            if drop:
+                motion = without_joints(motion, drop)
+        except OdmoError as exc:
+            if on_error == "raise":
+                raise DataError(f"{entry.path}: {exc}") from None
+            log.warning("skipping %s: %s", entry.path, exc)
+            skipped.append(str(entry.path))
+            continue
+        source = entry.path.relative_to(root).as_posix()
+        meta = {**entry.meta, "source": source}
+        motion = Motion(motion.joints, motion.fps, motion.skeleton, action=entry.action, meta=meta)
+        if clips and not motion.skeleton.same_topology(clips[0].skeleton):
+            raise DataError(f"{entry.path}: skeleton differs from {clips[0].meta['source']}")
+        clips.append(motion)
+        digests.append(f"{source}\t{digest}\t{entry.action}\t{json.dumps(entry.meta, sort_keys=True)}")
+        if progress is not None:
+            progress(i + 1, len(entries))
+    if store is not None:
+        store.save(prune=limit is None)
+    if not clips:
+        raise DataError(f"{root}: no readable labelled clips")
+    used = sorted({c.action for c in clips if c.action is not None})
+    if layout == "generic":
+        action_names = used
+    fingerprint = hashlib.sha256("\n".join([layout, *drop, *digests]).encode()).hexdigest()[:32]
+    log.info("loaded %d clips (%d actions) from %s", len(clips), len(action_names), root)
+    return Dataset(clips, action_names, root, fingerprint, clips[0].skeleton, layout, skipped)
+
+
+def cache_dir() -> Path:
+    """The cache folder: ``$ODMO_CACHE_DIR`` or ``~/.cache/odmo-explorer``."""
+    return Path(os.environ.get("ODMO_CACHE_DIR") or Path.home() / ".cache" / "odmo-explorer")
+
+
+def _is_bandai(root: Path) -> bool:
+    """True for the Bandai-Namco layout (cfg/content_label.txt and data/*.bvh)."""
+    return (root / "cfg" / "content_label.txt").is_file() and any((root / "data").glob("*.bvh"))
+
+
+def _label_names(path: Path) -> list[str]:
+    """Names listed one per line in a Bandai label file, without the ``dataset-N_`` prefix."""
+    lines = path.read_text(encoding="utf-8").splitlines()
+    return [_BANDAI_PREFIX.sub("", line.strip()) for line in lines if line.strip()]
+
+
+def _bandai_entries(root: Path) -> tuple[list[_Entry], list[str]]:
+    """Clips of a Bandai-Namco folder labelled by their JSON sidecars, and the action names in id order."""
+    actions = _label_names(root / "cfg" / "content_label.txt")
+    style_file = root / "cfg" / "style_label.txt"
+    styles = _label_names(style_file) if style_file.is_file() else []
+    entries = []
+    for bvh in sorted((root / "data").glob("*.bvh")):
+        sidecar = bvh.with_suffix(".json")
+        try:
+            label = json.loads(sidecar.read_text(encoding="utf-8"))
+            content = int(label["content"])
+            meta = {"action_id": content}
+            if "style" in label:
+                style = int(label["style"])
+                meta["style"] = styles[style] if 0 <= style < len(styles) else str(style)
+            entries.append(_Entry(bvh, actions[content], meta))
+        except (OSError, ValueError, KeyError, TypeError, IndexError) as exc:
+            raise DataError(f"{sidecar}: unusable label sidecar ({type(exc).__name__}: {exc})") from None
+    return entries, actions
+
+
+def _generic_entries(
+    root: Path, pattern: str | None, labels: str | Path | None
+) -> tuple[list[_Entry], list[str]]:
+    """Motion files of a folder labelled by a sidecar, a file-name regex or the HumanAct12 naming."""
+    from engine.motion.humanact12 import label_from_filename
+
+    files = sorted(p for p in root.iterdir() if p.suffix.lower() in _MOTION_SUFFIXES and p.is_file())
+    if labels is not None:
+        table = _read_sidecar(Path(labels) if Path(labels).is_absolute() else root / labels)
+        found = [(p, table.get(p.name) or table.get(p.stem)) for p in files]
+    elif pattern is not None:
+        try:
+            regex = re.compile(pattern)
+        except re.error as exc:
+            raise ConfigError(f"bad label pattern {pattern!r}: {exc}") from None
+        if "action" not in regex.groupindex:
+            raise ConfigError(f"label pattern {pattern!r} needs a named group (?P<action>...)")
+        found = [(p, _match_label(regex, p.name)) for p in files]
+    else:
+        found = []
+        for p in files:
+            label = label_from_filename(p.name) if p.suffix.lower() == ".npy" else None
+            found.append((p, None if label is None else {"action": label[0], **label[1]}))
+    entries = []
+    for p, label in found:
+        if label is None:
+            log.info("no label for %s, skipped", p.name)
+            continue
+        meta = {k: v for k, v in label.items() if k != "action"}
+        entries.append(_Entry(p, str(label["action"]), meta))
+    return entries, sorted({e.action for e in entries})
+
+
+def _match_label(regex: re.Pattern[str], name: str) -> dict[str, str] | None:
+    """Named groups of ``regex`` found in ``name`` (None when it does not match)."""
+    match = regex.search(name)
+    if match is None or match["action"] is None:
+        return None
+    return {k: v for k, v in match.groupdict().items() if v is not None}
+
+
+def _read_sidecar(path: Path) -> dict[str, dict[str, Any]]:
+    """File name -> label fields from a CSV (header ``file,action,...``) or JSON sidecar."""
+    try:
+        text = path.read_text(encoding="utf-8")
+    except OSError as exc:
+        raise DataError(f"{path}: cannot read labels ({exc})") from None
+    if path.suffix.lower() == ".json":
+        try:
+            raw = json.loads(text)
+        except json.JSONDecodeError as exc:
+            raise DataError(f"{path}:{exc.lineno}: invalid JSON ({exc.msg})") from None
+        if not isinstance(raw, dict):
+            raise DataError(f"{path}: expected a JSON object mapping file names to labels")
+        table = {}
+        for name, value in raw.items():
+            fields = value if isinstance(value, dict) else {"action": value}
+            if not isinstance(fields.get("action"), str):
+                raise DataError(f"{path}: entry {name!r} has no string 'action'")
+            table[name] = fields
+        return table
+    rows = list(csv.reader(text.splitlines()))
+    if not rows or rows[0][:2] != ["file", "action"]:
+        raise DataError(f"{path}:1: the CSV header must start with 'file,action'")
+    header = rows[0]
+    table = {}
+    for line, row in enumerate(rows[1:], start=2):
+        if not row:
+            continue
+        if len(row) != len(header):
+            raise DataError(f"{path}:{line}: expected {len(header)} columns, got {len(row)}")
+        table[row[0]] = dict(zip(header[1:], row[1:], strict=True))
+    return table
+
+
+def _load_clip(entry: _Entry, store: _Cache | None) -> tuple[str, Motion]:
+    """(content hash, parsed clip) of one file, from the cache when it holds it."""
+    from engine.motion.formats import read_motion
+
+    try:
+        data = entry.path.read_bytes()
+    except OSError as exc:
+        raise DataError(f"cannot read ({exc})") from None
+    digest = hashlib.blake2b(data, digest_size=16).hexdigest()
+    motion = store.get(digest) if store is not None else None
+    if motion is None:
+        motion = read_motion(entry.path)
+        motion = Motion(motion.joints, motion.fps, motion.skeleton)
+        if store is not None:
+            store.put(digest, motion)
+    return digest, motion
+
+
+def without_joints(motion: Motion, names: Sequence[str]) -> Motion:
+    """``motion`` (positions, label, meta) without the joints called ``names``; absent names are ignored."""
+    skel = motion.skeleton
+    keep = [j for j, n in enumerate(skel.names) if n not in names]
+    if len(keep) == skel.n_joints:
+        return motion
+    return Motion(
+        motion.joints[:, keep], motion.fps, skel.subset(keep), action=motion.action, meta=motion.meta
+    )
+
+
+class _Cache:
+    """Parsed clips of one folder, keyed by content hash, in one NPZ file (no pickles)."""
+
+    def __init__(self, root: Path) -> None:
+        key = hashlib.sha1(f"{root}\n{CACHE_VERSION}".encode()).hexdigest()[:16]
+        self.path = cache_dir() / "datasets" / f"{root.name}-{key}.npz"
+        self.entries: dict[str, Motion] = {}
+        self.used: set[str] = set()
+        self.dirty = False
+        if self.path.is_file():
+            try:
+                self.entries = _read_cache(self.path)
+            except (OSError, ValueError, KeyError, OdmoError) as exc:
+                log.warning("ignoring unreadable cache %s: %s", self.path, exc)
+
+    def get(self, digest: str) -> Motion | None:
+        """The cached clip with this content hash, or None."""
+        self.used.add(digest)
+        return self.entries.get(digest)
+
+    def put(self, digest: str, motion: Motion) -> None:
+        """Remember a freshly parsed clip."""
+        self.entries[digest] = motion
+        self.dirty = True
+
+    def save(self, prune: bool) -> None:
+        """Write the cache if it changed (dropping clips no longer in the folder when ``prune``)."""
+        if prune and set(self.entries) != self.used:
+            self.entries = {k: v for k, v in self.entries.items() if k in self.used}
+            self.dirty = True
+        if not self.dirty or not self.entries:
+            return
+        topologies = {(m.skeleton.names, tuple(m.skeleton.parents)) for m in self.entries.values()}
+        if len(topologies) != 1:
+            log.warning("clips have different skeletons; not caching %s", self.path)
+            return
+        try:
+            _write_cache(self.path, self.entries)
+        except OSError as exc:
+            log.warning("could not write cache %s: %s", self.path, exc)
+
+
+def _write_cache(path: Path, entries: dict[str, Motion]) -> None:
+    """Write ``entries`` (one skeleton topology) to one NPZ file atomically."""
+    motions = list(entries.values())
+    first = motions[0].skeleton
+    arrays = {
+        "version": np.asarray(CACHE_VERSION),
+        "digests": np.asarray(list(entries), dtype=np.str_),
+        "frames": np.array([m.n_frames for m in motions], dtype=np.int64),
+        "fps": np.array([m.fps for m in motions]),
+        "joints": np.concatenate([m.joints for m in motions]),
+        "offsets": np.stack([m.skeleton.offsets for m in motions]),
+        "names": np.asarray(first.names, dtype=np.str_),
+        "parents": np.asarray(first.parents),
+        "site_parents": np.array([p for p, _ in first.end_sites], dtype=np.int64),
+        "site_offsets": np.array([[o for _, o in m.skeleton.end_sites] for m in motions]).reshape(
+            len(motions), len(first.end_sites), 3
+        ),
+        "units": np.asarray([m.skeleton.units for m in motions], dtype=np.str_),
+    }
+    with atomic_write(path, "wb") as handle:
+        np.savez(handle, **arrays)
+
+
+def _read_cache(path: Path) -> dict[str, Motion]:
+    """Clips of a cache file written by :func:`_write_cache`, keyed by content hash."""
+    with np.load(path, allow_pickle=False) as archive:
+        data = {key: archive[key] for key in archive.files}
+    if int(data["version"]) != CACHE_VERSION:
+        return {}
+    names = tuple(data["names"].tolist())
+    site_parents = data["site_parents"].tolist()
+    bounds = np.concatenate([[0], np.cumsum(data["frames"])])
+    entries = {}
+    for i, digest in enumerate(data["digests"].tolist()):
+        sites = tuple(
+            (p, (float(o[0]), float(o[1]), float(o[2])))
+            for p, o in zip(site_parents, data["site_offsets"][i], strict=True)
+        )
+        skel = Skeleton(names, data["parents"], data["offsets"][i], sites, str(data["units"][i]))
+        entries[digest] = Motion(data["joints"][bounds[i] : bounds[i + 1]], float(data["fps"][i]), skel)
+    return entries
