@@ -25,7 +25,7 @@ from widgets._colors import ACCENT, FOREGROUND, brushes_for, configure_plot, qco
 Tool = Literal["pick", "lasso"]
 
 
-class _PassiveScatter(pg.ScatterPlotItem):
+class PassiveScatter(pg.ScatterPlotItem):
     """A scatter item that lets clicks through to the view box (which does its own picking)."""
 
     def mouseClickEvent(self, ev: object) -> None:  # noqa: N802
@@ -33,7 +33,7 @@ class _PassiveScatter(pg.ScatterPlotItem):
         ev.ignore()  # type: ignore[attr-defined]
 
 
-class _MapViewBox(pg.ViewBox):
+class GestureViewBox(pg.ViewBox):
     """A view box that hands clicks, drags and hovers to callbacks before its default pan/zoom."""
 
     def __init__(
@@ -97,16 +97,16 @@ class LatentMap(QWidget):
         self._dragging = False
         self._lasso: list[tuple[float, float]] = []
 
-        self.view_box = _MapViewBox(self._handle_click, self._handle_drag, self._handle_hover)
+        self.view_box = GestureViewBox(self._handle_click, self._handle_drag, self._handle_hover)
         self.plot = pg.PlotWidget(viewBox=self.view_box)
         configure_plot(self.plot)
         self.view_box.setAspectLocked(False)
-        self.scatter = _PassiveScatter(pxMode=True, size=point_size, pen=None, symbol="o")
-        self._highlight = _PassiveScatter(
+        self.scatter = PassiveScatter(pxMode=True, size=point_size, pen=None, symbol="o")
+        self._highlight = PassiveScatter(
             pxMode=True, size=point_size + 8, pen=pg.mkPen(ACCENT, width=2), brush=None, symbol="o"
         )
-        self._extra = _PassiveScatter(pxMode=True, size=point_size + 5, pen=pg.mkPen("w"), symbol="d")
-        self._marker = _PassiveScatter(pxMode=True, size=20, pen=pg.mkPen("k"), brush=ACCENT, symbol="star")
+        self._extra = PassiveScatter(pxMode=True, size=point_size + 5, pen=pg.mkPen("w"), symbol="d")
+        self._marker = PassiveScatter(pxMode=True, size=20, pen=pg.mkPen("k"), brush=ACCENT, symbol="star")
         self._lasso_curve = pg.PlotCurveItem(pen=pg.mkPen(ACCENT, width=1.5, style=Qt.PenStyle.DashLine))
         self._overlays: list[pg.PlotCurveItem] = []
         layers = (self.scatter, self._highlight, self._extra, self._marker, self._lasso_curve)
