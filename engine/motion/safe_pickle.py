@@ -1,4 +1,8 @@
-"""An allow-list unpickler for data-only pickles (numpy arrays, lists, dicts, numbers, strings)."""
+"""An allow-list unpickler for data-only pickles (numpy arrays, lists, dicts, numbers, strings).
+
+Only numpy's array, dtype and scalar reconstructors (and latin-1 ``_codecs.encode``, which protocol-2
+pickles use for bytes) resolve; any other global refuses the whole file.
+"""
 
 from __future__ import annotations
 
@@ -10,6 +14,14 @@ import numpy as np
 
 from engine.errors import MotionFormatError
 
+
+def _latin1_bytes(text: str, encoding: str = "latin1") -> bytes:
+    """``_codecs.encode`` as protocol-2 pickles use it for bytes, limited to latin-1 text."""
+    if not isinstance(text, str) or encoding not in ("latin1", "latin-1"):
+        raise pickle.UnpicklingError(f"refused _codecs.encode with encoding {encoding!r}")
+    return text.encode("latin1")
+
+
 # Globals a data pickle of numpy arrays needs; anything else (os.system, eval, ...) is refused.
 # Lists, dicts, tuples, ints, floats and strings have their own opcodes and need no global.
 _ALLOWED = {
@@ -18,6 +30,7 @@ _ALLOWED = {
     ("numpy._core.multiarray", "_reconstruct"): np._core.multiarray._reconstruct,
     ("numpy._core.multiarray", "scalar"): np._core.multiarray.scalar,
     ("numpy._core.numeric", "_frombuffer"): np._core.numeric._frombuffer,
+    ("_codecs", "encode"): _latin1_bytes,
 }
 _LEGACY_MODULES = {
     "numpy.core.multiarray": "numpy._core.multiarray",
