@@ -136,7 +136,9 @@ def parse_bvh_text(
 def _decode(data: bytes, path: str) -> str:
     """UTF-8 text of ``data`` (a BOM is dropped); binary data raises MotionFormatError."""
     if b"\x00" in data:
-        raise MotionFormatError("binary data (NUL byte) in a text file", path, data.count(b"\n", 0, data.index(b"\x00")) + 1)
+        raise MotionFormatError(
+            "binary data (NUL byte) in a text file", path, data.count(b"\n", 0, data.index(b"\x00")) + 1
+        )
     try:
         return data.decode("utf-8-sig")
     except UnicodeDecodeError as exc:
@@ -234,7 +236,9 @@ def _parse_motion_header(lines: Sequence[str], motion_at: int, path: str) -> tup
         i += 1
     (frames_tok, frames_line), (time_tok, time_line) = found
     if not frames_tok.isdigit():
-        raise MotionFormatError(f"frame count must be a whole number, found {frames_tok!r}", path, frames_line)
+        raise MotionFormatError(
+            f"frame count must be a whole number, found {frames_tok!r}", path, frames_line
+        )
     frames = int(frames_tok)
     if frames == 0:
         raise MotionFormatError("the file has zero frames", path, frames_line)
@@ -244,7 +248,9 @@ def _parse_motion_header(lines: Sequence[str], motion_at: int, path: str) -> tup
         raise MotionFormatError(f"frame time must be a number, found {time_tok!r}", path, time_line) from None
     if not _MIN_FRAME_TIME <= frame_time <= _MAX_FRAME_TIME:
         raise MotionFormatError(
-            f"frame time must be in [{_MIN_FRAME_TIME}, {_MAX_FRAME_TIME}] s, found {time_tok!r}", path, time_line
+            f"frame time must be in [{_MIN_FRAME_TIME}, {_MAX_FRAME_TIME}] s, found {time_tok!r}",
+            path,
+            time_line,
         )
     return frames, frame_time, i
 
@@ -256,7 +262,9 @@ def _parse_frames(lines: Sequence[str], start: int, frames: int, n_channels: int
         end -= 1
     rows = lines[start:end]
     if len(rows) < frames:
-        raise MotionFormatError(f"Frames: says {frames} but the file has {len(rows)} motion lines", path, end + 1)
+        raise MotionFormatError(
+            f"Frames: says {frames} but the file has {len(rows)} motion lines", path, end + 1
+        )
     if len(rows) > frames:
         raise MotionFormatError(f"more motion lines than Frames: {frames}", path, start + frames + 1)
     split = [row.split() for row in rows]
@@ -366,7 +374,9 @@ def _unit_factor(
     return UNITS_TO_M[detected], detected
 
 
-def write_bvh(path: str | Path, motion: Motion, rotation_order: str = "ZXY", *, units: str = "m") -> dict[str, Any]:
+def write_bvh(
+    path: str | Path, motion: Motion, rotation_order: str = "ZXY", *, units: str = "m"
+) -> dict[str, Any]:
     """Write ``motion`` to a BVH file atomically; returns the report of :func:`format_bvh`."""
     text, report = format_bvh(motion, rotation_order, units=units)
     atomic_write_text(path, text)
@@ -374,7 +384,9 @@ def write_bvh(path: str | Path, motion: Motion, rotation_order: str = "ZXY", *, 
     return report
 
 
-def format_bvh(motion: Motion, rotation_order: str = "ZXY", *, units: str = "m") -> tuple[str, dict[str, Any]]:
+def format_bvh(
+    motion: Motion, rotation_order: str = "ZXY", *, units: str = "m"
+) -> tuple[str, dict[str, Any]]:
     """BVH text of ``motion`` and a report (``fk_error_m``: mean joint distance of the file's FK)."""
     order = rotation_order.upper()
     if sorted(order) != ["X", "Y", "Z"]:
@@ -392,14 +404,16 @@ def format_bvh(motion: Motion, rotation_order: str = "ZXY", *, units: str = "m")
         if root_translation is None:
             root_translation = motion.joints[:, skeleton.root].astype(np.float64)
         source = "rotations"
+    if not (np.all(np.isfinite(rotations)) and np.all(np.isfinite(root_translation))):
+        raise ConfigError("cannot write non-finite rotations or translations to BVH")
     error = np.linalg.norm(forward_kinematics(skeleton, rotations, root_translation) - motion.joints, axis=-1)
     angles = quat_to_euler(quat_continuity(rotations), order)
     to_units = 1.0 / UNITS_TO_M[units]
     order_dfs = _depth_first(skeleton)
     columns = [root_translation * to_units] + [angles[:, j] for j in order_dfs]
     data = np.concatenate(columns, axis=1)
-    if not (np.all(np.isfinite(data)) and np.all(np.isfinite(rotations))):
-        raise ConfigError("cannot write non-finite rotations or translations to BVH")
+    if not np.all(np.isfinite(data)):
+        raise ConfigError("cannot write non-finite values to BVH")
     names = _unique_names(skeleton.names)
     header = _format_hierarchy(skeleton, names, order, to_units)
     row_format = " ".join(["%.6f"] * data.shape[1])

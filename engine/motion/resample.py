@@ -41,4 +41,6 @@ def resample_motion(motion: Motion, fps: float) -> Motion:
     if motion.root_translation is not None:
         root = lerp(motion.root_translation)
     meta = {**motion.meta, "resampled_from_fps": motion.fps}
-    return replace(motion, joints=joints, fps=fps, local_rotations=rotations, root_translation=root, meta=meta)
+    return replace(
+        motion, joints=joints, fps=fps, local_rotations=rotations, root_translation=root, meta=meta
+    )

@@ -48,7 +48,7 @@ def quat_to_euler(quats: np.ndarray, order: str) -> np.ndarray:
 
 def quat_multiply(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Hamilton product ``a * b`` of broadcastable (..., 4) quaternions (apply ``b`` first)."""
-    qa, qb = np.broadcast_arrays(np.asarray(a, np.float64), np.asarray(b, np.float64))
+    qa, qb = (np.array(x) for x in np.broadcast_arrays(np.asarray(a, np.float64), np.asarray(b, np.float64)))
     return (_rotations(qa) * _rotations(qb)).as_quat(scalar_first=True)
 
 
@@ -57,8 +57,8 @@ def quat_apply(q: np.ndarray, v: np.ndarray) -> np.ndarray:
     q = np.asarray(q, np.float64)
     v = np.asarray(v, np.float64)
     shape = np.broadcast_shapes(q.shape[:-1], v.shape[:-1])
-    qs = np.broadcast_to(q, (*shape, 4)).reshape(-1, 4)
-    vs = np.broadcast_to(v, (*shape, 3)).reshape(-1, 3)
+    qs = np.array(np.broadcast_to(q, (*shape, 4))).reshape(-1, 4)
+    vs = np.array(np.broadcast_to(v, (*shape, 3))).reshape(-1, 3)
     return _rotations(qs).apply(vs).reshape(*shape, 3)
 
 

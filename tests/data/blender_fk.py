@@ -24,7 +24,12 @@ import_bvh.open = _open_without_u
 def main() -> None:
     src, dst = sys.argv[sys.argv.index("--") + 1 :]
     bpy.ops.import_anim.bvh(
-        filepath=src, global_scale=1.0, axis_forward="-Z", axis_up="Y", rotate_mode="NATIVE", use_fps_scale=False
+        filepath=src,
+        global_scale=1.0,
+        axis_forward="-Z",
+        axis_up="Y",
+        rotate_mode="NATIVE",
+        use_fps_scale=False,
     )
     obj = bpy.context.view_layer.objects.active
     scene = bpy.context.scene
