@@ -32,7 +32,7 @@ def euler_to_quat(angles_deg: np.ndarray, order: str) -> np.ndarray:
 
 
 def quat_to_euler(quats: np.ndarray, order: str) -> np.ndarray:
-    """(..., 3) intrinsic Euler angles in degrees of (..., 4) quaternions, unwrapped along axis 0 if ndim >= 2."""
+    """(..., 3) intrinsic Euler angles in degrees of (..., 4) quaternions, unwrapped over time (axis 0)."""
     order = _check_order(order)
     if len(order) != 3:
         raise ConfigError(f"quat_to_euler needs three axes, got {order!r}")

@@ -33,7 +33,7 @@ def main() -> None:
     )
     obj = bpy.context.view_layer.objects.active
     scene = bpy.context.scene
-    first, last = (int(round(f)) for f in obj.animation_data.action.frame_range)
+    first, last = (round(f) for f in obj.animation_data.action.frame_range)
     names = [bone.name for bone in obj.pose.bones]
     frames = []
     for frame in range(first, last + 1):

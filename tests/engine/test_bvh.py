@@ -12,7 +12,7 @@ from scipy.spatial.transform import Rotation
 from engine.errors import ConfigError, MotionFormatError
 from engine.motion.bvh import format_bvh, parse_bvh_text, read_bvh, write_bvh
 from engine.motion.motion import Motion
-from engine.motion.rotations import euler_to_quat
+from engine.motion.rotations import euler_to_quat, forward_kinematics
 from engine.motion.skeleton import Skeleton
 
 DATA = Path(__file__).resolve().parents[1] / "data"
@@ -131,9 +131,7 @@ def _chain_motion(rng: np.random.Generator, order: str = "ZXY") -> Motion:
     )
     T = 13
     rots = euler_to_quat(np.cumsum(rng.uniform(-20, 20, (T, 5, 3)), axis=0), order)
-    root = np.cumsum(rng.uniform(-0.05, 0.05, (T, 3)), axis=0) + [0, 0.9, 0]
-    from engine.motion.rotations import forward_kinematics
-
+    root = np.cumsum(rng.uniform(-0.05, 0.05, (T, 3)), axis=0) + np.array([0, 0.9, 0])
     joints = forward_kinematics(skel, rots, root)
     return Motion(joints, 30.0, skel, rots, root, action="wave", meta={"style": "x"})
 
@@ -204,8 +202,6 @@ def test_writer_eulers_are_continuous(tmp_path: Path) -> None:
     rots[:, 0] = (
         euler_to_quat(np.stack([z, 0 * z, 0 * z], 1), "ZXY") * np.where(np.arange(101) % 2, -1, 1)[:, None]
     )
-    from engine.motion.rotations import forward_kinematics
-
     joints = forward_kinematics(skel, rots, np.zeros((101, 3)))
     text, _ = format_bvh(Motion(joints, 30, skel, rots, np.zeros((101, 3))))
     data = np.array(text.split("Frame Time: ")[1].split()[1:], float).reshape(101, 9)
