@@ -48,10 +48,11 @@ def to_rgba8(colors: np.ndarray, n: int) -> np.ndarray:
 
 def brushes_for(rgba: np.ndarray) -> np.ndarray:
     """Return an object array of QBrush, one per row of ``rgba`` (N, 4) uint8, shared per distinct colour."""
-    unique, inverse = np.unique(rgba, axis=0, return_inverse=True)
+    packed = np.ascontiguousarray(rgba, dtype=np.uint8).view(np.uint32).reshape(-1)
+    unique, first, inverse = np.unique(packed, return_index=True, return_inverse=True)
     table = np.empty(len(unique), dtype=object)
-    table[:] = [QBrush(pg.mkColor(*(int(c) for c in row))) for row in unique]
-    return table[inverse.reshape(-1)]
+    table[:] = [QBrush(pg.mkColor(*(int(c) for c in rgba[i]))) for i in first]
+    return table[inverse]
 
 
 def configure_plot(plot: pg.PlotWidget) -> None:

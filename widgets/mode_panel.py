@@ -52,6 +52,7 @@ class ModePanel(QWidget):
         item = self.plot.getPlotItem()
         item.setLabel("bottom", "K")
         item.setLabel("left", "silhouette")
+        item.getAxis("left").enableAutoSIPrefix(False)
         item.hideButtons()
         self._curve = item.plot(pen=pg.mkPen(FOREGROUND, width=2), symbol="o", symbolSize=6)
         self._chosen = pg.ScatterPlotItem(size=14, symbol="star", brush=ACCENT, pen=pg.mkPen("k"))

@@ -28,9 +28,8 @@ def _bone_cells(parents: np.ndarray, n: int) -> np.ndarray:
 
 def _stick_figures(parents: np.ndarray, joints: np.ndarray) -> pv.PolyData:
     """Line mesh of skeletons with joint positions ``joints`` (n, J, 3)."""
-    mesh = pv.PolyData(np.ascontiguousarray(joints.reshape(-1, 3), dtype=np.float32))
-    mesh.lines = _bone_cells(parents, len(joints))
-    return mesh
+    points = np.ascontiguousarray(joints.reshape(-1, 3), dtype=np.float32)
+    return pv.PolyData(points, lines=_bone_cells(parents, len(joints)))
 
 
 class SkeletonViewport(QWidget):
