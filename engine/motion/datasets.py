@@ -102,18 +102,19 @@ def load_folder(
         raise DataError(f"{root}: not a folder")
     if on_error not in ("raise", "skip"):
         raise ConfigError(f"on_error must be 'raise' or 'skip', got {on_error!r}")
+    if limit is not None:
+        limit = max(0, int(limit))
     if _is_bandai(root) and pattern is None and labels is None:
-        layout, (entries, action_names) = "bandai", _bandai_entries(root)
+        layout, (entries, action_names) = "bandai", _bandai_entries(root, limit)
         drop = BANDAI_DROP_JOINTS if drop_joints is None else tuple(drop_joints)
     else:
         layout, (entries, action_names) = "generic", _generic_entries(root, pattern, labels)
         drop = () if drop_joints is None else tuple(drop_joints)
-    if limit is not None:
-        entries = entries[: max(0, int(limit))]
+    entries = entries[:limit]
     if not entries:
         raise DataError(f"{root}: no labelled clips")
 
-    store = _Cache(root) if cache else None
+    store = _Cache(root, drop) if cache else None
     clips: list[Motion] = []
     skipped: list[str] = []
     digests: list[str] = []
@@ -121,9 +122,7 @@ def load_folder(
         if cancel is not None and cancel():
             raise CancelledError(f"loading {root} cancelled after {i} of {len(entries)} clips")
         try:
-            digest, motion = _load_clip(entry, store)
-            if drop:
-                motion = without_joints(motion, drop)
+            digest, motion = _load_clip(entry, store, drop)
         except OdmoError as exc:
             if on_error == "raise":
                 raise DataError(f"{entry.path}: {exc}") from None
@@ -131,8 +130,7 @@ def load_folder(
             skipped.append(str(entry.path))
             continue
         source = entry.path.relative_to(root).as_posix()
-        meta = {**entry.meta, "source": source}
-        motion = Motion(motion.joints, motion.fps, motion.skeleton, action=entry.action, meta=meta)
+        motion.meta["source"] = source
         if clips and not motion.skeleton.same_topology(clips[0].skeleton):
             raise DataError(f"{entry.path}: skeleton differs from {clips[0].meta['source']}")
         clips.append(motion)
@@ -167,13 +165,13 @@ def _label_names(path: Path) -> list[str]:
     return [_BANDAI_PREFIX.sub("", line.strip()) for line in lines if line.strip()]
 
 
-def _bandai_entries(root: Path) -> tuple[list[_Entry], list[str]]:
-    """Clips of a Bandai-Namco folder labelled by their JSON sidecars, and the action names in id order."""
+def _bandai_entries(root: Path, limit: int | None) -> tuple[list[_Entry], list[str]]:
+    """The first ``limit`` clips of a Bandai-Namco folder labelled by their JSON sidecars, and the actions."""
     actions = _label_names(root / "cfg" / "content_label.txt")
     style_file = root / "cfg" / "style_label.txt"
     styles = _label_names(style_file) if style_file.is_file() else []
     entries = []
-    for bvh in sorted((root / "data").glob("*.bvh")):
+    for bvh in sorted((root / "data").glob("*.bvh"), key=lambda p: p.name)[:limit]:
         sidecar = bvh.with_suffix(".json")
         try:
             label = json.loads(sidecar.read_text(encoding="utf-8"))
@@ -263,8 +261,8 @@ def _read_sidecar(path: Path) -> dict[str, dict[str, Any]]:
     return table
 
 
-def _load_clip(entry: _Entry, store: _Cache | None) -> tuple[str, Motion]:
-    """(content hash, parsed clip) of one file, from the cache when it holds it."""
+def _load_clip(entry: _Entry, store: _Cache | None, drop: Sequence[str]) -> tuple[str, Motion]:
+    """(content hash, parsed clip without the ``drop`` joints) of one file, from the cache if it has it."""
     from engine.motion.formats import read_motion
 
     try:
@@ -272,13 +270,14 @@ def _load_clip(entry: _Entry, store: _Cache | None) -> tuple[str, Motion]:
     except OSError as exc:
         raise DataError(f"cannot read ({exc})") from None
     digest = hashlib.blake2b(data, digest_size=16).hexdigest()
-    motion = store.get(digest) if store is not None else None
-    if motion is None:
-        motion = read_motion(entry.path)
-        motion = Motion(motion.joints, motion.fps, motion.skeleton)
+    parsed = store.get(digest) if store is not None else None
+    if parsed is None:
+        motion = without_joints(read_motion(entry.path), drop)
+        parsed = (motion.joints, motion.fps, motion.skeleton)
         if store is not None:
-            store.put(digest, motion)
-    return digest, motion
+            store.put(digest, parsed)
+    joints, fps, skeleton = parsed
+    return digest, Motion(joints, fps, skeleton, action=entry.action, meta=dict(entry.meta))
 
 
 def without_joints(motion: Motion, names: Sequence[str]) -> Motion:
@@ -292,13 +291,16 @@ def without_joints(motion: Motion, names: Sequence[str]) -> Motion:
     )
 
 
-class _Cache:
-    """Parsed clips of one folder, keyed by content hash, in one NPZ file (no pickles)."""
+_Parsed = tuple[np.ndarray, float, Skeleton]
 
-    def __init__(self, root: Path) -> None:
-        key = hashlib.sha1(f"{root}\n{CACHE_VERSION}".encode()).hexdigest()[:16]
+
+class _Cache:
+    """Parsed clips (joints, fps, skeleton) of one folder by content hash, in one NPZ file (no pickles)."""
+
+    def __init__(self, root: Path, drop: Sequence[str]) -> None:
+        key = hashlib.sha1("\n".join([str(root), str(CACHE_VERSION), *drop]).encode()).hexdigest()[:16]
         self.path = cache_dir() / "datasets" / f"{root.name}-{key}.npz"
-        self.entries: dict[str, Motion] = {}
+        self.entries: dict[str, _Parsed] = {}
         self.used: set[str] = set()
         self.dirty = False
         if self.path.is_file():
@@ -307,14 +309,14 @@ class _Cache:
             except (OSError, ValueError, KeyError, OdmoError) as exc:
                 log.warning("ignoring unreadable cache %s: %s", self.path, exc)
 
-    def get(self, digest: str) -> Motion | None:
+    def get(self, digest: str) -> _Parsed | None:
         """The cached clip with this content hash, or None."""
         self.used.add(digest)
         return self.entries.get(digest)
 
-    def put(self, digest: str, motion: Motion) -> None:
+    def put(self, digest: str, parsed: _Parsed) -> None:
         """Remember a freshly parsed clip."""
-        self.entries[digest] = motion
+        self.entries[digest] = parsed
         self.dirty = True
 
     def save(self, prune: bool) -> None:
@@ -324,7 +326,7 @@ class _Cache:
             self.dirty = True
         if not self.dirty or not self.entries:
             return
-        topologies = {(m.skeleton.names, tuple(m.skeleton.parents)) for m in self.entries.values()}
+        topologies = {(skel.names, tuple(skel.parents)) for _, _, skel in self.entries.values()}
         if len(topologies) != 1:
             log.warning("clips have different skeletons; not caching %s", self.path)
             return
@@ -334,30 +336,31 @@ class _Cache:
             log.warning("could not write cache %s: %s", self.path, exc)
 
 
-def _write_cache(path: Path, entries: dict[str, Motion]) -> None:
+def _write_cache(path: Path, entries: dict[str, _Parsed]) -> None:
     """Write ``entries`` (one skeleton topology) to one NPZ file atomically."""
-    motions = list(entries.values())
-    first = motions[0].skeleton
+    parsed = list(entries.values())
+    skeletons = [skel for _, _, skel in parsed]
+    first = skeletons[0]
     arrays = {
         "version": np.asarray(CACHE_VERSION),
         "digests": np.asarray(list(entries), dtype=np.str_),
-        "frames": np.array([m.n_frames for m in motions], dtype=np.int64),
-        "fps": np.array([m.fps for m in motions]),
-        "joints": np.concatenate([m.joints for m in motions]),
-        "offsets": np.stack([m.skeleton.offsets for m in motions]),
+        "frames": np.array([len(joints) for joints, _, _ in parsed], dtype=np.int64),
+        "fps": np.array([fps for _, fps, _ in parsed]),
+        "joints": np.concatenate([joints for joints, _, _ in parsed]),
+        "offsets": np.stack([skel.offsets for skel in skeletons]),
         "names": np.asarray(first.names, dtype=np.str_),
         "parents": np.asarray(first.parents),
         "site_parents": np.array([p for p, _ in first.end_sites], dtype=np.int64),
-        "site_offsets": np.array([[o for _, o in m.skeleton.end_sites] for m in motions]).reshape(
-            len(motions), len(first.end_sites), 3
+        "site_offsets": np.array([[o for _, o in skel.end_sites] for skel in skeletons]).reshape(
+            len(skeletons), len(first.end_sites), 3
         ),
-        "units": np.asarray([m.skeleton.units for m in motions], dtype=np.str_),
+        "units": np.asarray([skel.units for skel in skeletons], dtype=np.str_),
     }
     with atomic_write(path, "wb") as handle:
         np.savez(handle, **arrays)
 
 
-def _read_cache(path: Path) -> dict[str, Motion]:
+def _read_cache(path: Path) -> dict[str, _Parsed]:
     """Clips of a cache file written by :func:`_write_cache`, keyed by content hash."""
     with np.load(path, allow_pickle=False) as archive:
         data = {key: archive[key] for key in archive.files}
@@ -366,12 +369,16 @@ def _read_cache(path: Path) -> dict[str, Motion]:
     names = tuple(data["names"].tolist())
     site_parents = data["site_parents"].tolist()
     bounds = np.concatenate([[0], np.cumsum(data["frames"])])
+    skeletons: dict[bytes, Skeleton] = {}  # clips of one performer share one Skeleton object
     entries = {}
     for i, digest in enumerate(data["digests"].tolist()):
-        sites = tuple(
-            (p, (float(o[0]), float(o[1]), float(o[2])))
-            for p, o in zip(site_parents, data["site_offsets"][i], strict=True)
-        )
-        skel = Skeleton(names, data["parents"], data["offsets"][i], sites, str(data["units"][i]))
-        entries[digest] = Motion(data["joints"][bounds[i] : bounds[i + 1]], float(data["fps"][i]), skel)
+        offsets, site_offsets, units = data["offsets"][i], data["site_offsets"][i], str(data["units"][i])
+        key = offsets.tobytes() + site_offsets.tobytes() + units.encode()
+        if key not in skeletons:
+            sites = tuple(
+                (p, (float(o[0]), float(o[1]), float(o[2])))
+                for p, o in zip(site_parents, site_offsets, strict=True)
+            )
+            skeletons[key] = Skeleton(names, data["parents"], offsets, sites, units)
+        entries[digest] = (data["joints"][bounds[i] : bounds[i + 1]], float(data["fps"][i]), skeletons[key])
     return entries
