@@ -218,9 +218,11 @@ class TSNEProjection(Projection):
 class UMAPProjection(Projection):
     """umap-learn's UMAP (seeded, imported lazily).
 
-    While the fitted umap model is in memory (``model_``), transform and inverse_transform are umap's own.
-    The model (numba graphs, a nearest-neighbour index) cannot be stored without pickle, so a loaded
-    projection keeps codes and embedding only and uses the neighbour blends, as t-SNE does.
+    While the fitted umap model is in memory (``model_``), transform is umap's own. The model (numba
+    graphs, a nearest-neighbour index) cannot be stored without pickle, so a loaded projection keeps codes
+    and embedding only and places new codes by the neighbour blend, as t-SNE does. The inverse is always
+    the neighbour blend: umap-learn 0.5's ``inverse_transform`` compiles a numba function on every call
+    (seconds per point), far too slow for clicks and drags, and needs the model a loaded bank lacks.
     """
 
     name = "umap"
@@ -249,11 +251,6 @@ class UMAPProjection(Projection):
         if self.model_ is None:
             return super()._transform(x)
         return np.asarray(self.model_.transform(x), dtype=np.float64)
-
-    def _inverse(self, points: np.ndarray) -> np.ndarray:
-        if self.model_ is None:
-            return super()._inverse(points)
-        return np.asarray(self.model_.inverse_transform(points), dtype=np.float64)
 
 
 def make_projection(name: str, seed: int = 0, **kw: Any) -> Projection:
