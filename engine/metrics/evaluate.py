@@ -1,0 +1,263 @@
+"""Evaluate a model against a labelled folder of real clips: every metric as mean ± 95 % CI over repeats."""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Callable, Sequence
+from typing import Any
+
+import numpy as np
+import torch
+
+from engine.errors import CancelledError, ConfigError, DataError
+from engine.generate import sample
+from engine.metrics.accuracy import recognition_accuracy
+from engine.metrics.apd import apd, n_apd
+from engine.metrics.classifier import Classifier
+from engine.metrics.diversity import diversity, multimodality
+from engine.metrics.features import canonical_windows
+from engine.metrics.fid import fid
+from engine.metrics.modes import mode_homogeneity, mode_purity
+from engine.metrics.reconstruction import mpjpe
+from engine.metrics.stats import summarize
+from engine.metrics.trajectory import control_targets, end_point_errors, root_travel
+from engine.modelio import LoadedModel
+from engine.motion.motion import Motion
+from engine.train.windows import WindowBatch, crop_windows, prepare_clips
+
+log = logging.getLogger(__name__)
+
+EVAL_STRATEGIES = ("mode_preserving", "conventional")
+CONTROL_POINTS = 10  # end points per code (paper: two real ends and eight between them)
+
+
+def check_compatible(loaded: LoadedModel, clips: Sequence[Motion], classifier: Classifier | None) -> None:
+    """ConfigError/DataError (one line) unless clips, model and classifier share skeleton and actions."""
+    if not clips:
+        raise DataError("the real folder has no clips")
+    names = loaded.skeleton.names
+    for clip in clips:
+        if clip.skeleton.names != names:
+            raise ConfigError(
+                f"skeleton mismatch: the model has {len(names)} joints ({names[0]}, ...), a clip "
+                f"({clip.meta.get('source', '?')}) has {clip.n_joints} ({clip.skeleton.names[0]}, ...)"
+            )
+        if clip.action not in loaded.action_names:
+            raise ConfigError(
+                f"action {clip.action!r} of {clip.meta.get('source', 'a clip')} is not one of the model's "
+                f"actions ({', '.join(loaded.action_names)})"
+            )
+    if classifier is None:
+        return
+    if classifier.action_names != list(loaded.action_names):
+        raise ConfigError("the classifier's actions differ from the model's (train it on the same folder)")
+    if classifier.skeleton_names != tuple(names):
+        raise ConfigError("the classifier's skeleton differs from the model's")
+    if classifier.config.window != loaded.window or classifier.config.fps != loaded.fps:
+        raise ConfigError(
+            f"the classifier reads {classifier.config.window} frames at {classifier.config.fps} fps, "
+            f"the model makes {loaded.window} at {loaded.fps}"
+        )
+
+
+def _pick(labels: np.ndarray, actions: np.ndarray, n: int, rng: np.random.Generator) -> np.ndarray:
+    """``n`` clip indices per action (without replacement when the action has that many clips)."""
+    picks = []
+    for a in actions:
+        idx = np.flatnonzero(labels == a)
+        picks.append(rng.choice(idx, size=n, replace=len(idx) < n))
+    return np.concatenate(picks)
+
+
+def _by_action(windows: np.ndarray, labels: np.ndarray) -> dict[int, np.ndarray]:
+    return {int(a): windows[labels == a] for a in np.unique(labels) if np.count_nonzero(labels == a) >= 2}
+
+
+def _set_metrics(
+    windows: np.ndarray,
+    mask: np.ndarray | None,
+    labels: np.ndarray,
+    reference: dict[str, Any],
+    classifier: Classifier | None,
+    rng: np.random.Generator,
+) -> dict[str, float]:
+    """Classifier and APD metrics of one motion set against a reference real set."""
+    out: dict[str, float] = {}
+    if classifier is not None:
+        feats, pred = classifier.classify(windows, mask)
+        out["accuracy"] = recognition_accuracy(pred, labels)
+        out["fid"] = fid(feats, reference["features"])
+        out["diversity"] = diversity(feats, rng)
+        out["multimodality"] = multimodality(feats, labels, rng)
+    groups = _by_action(windows, labels)
+    out["apd"] = float(np.mean([apd(g) for g in groups.values()]))
+    out["n_apd"] = n_apd(groups, reference["groups"])
+    return out
+
+
+def _model_metrics(
+    loaded: LoadedModel,
+    batch: WindowBatch,
+    styles: np.ndarray | None,
+    classifier: Classifier | None,
+    strategy: str,
+    n_codes: int,
+    rng: np.random.Generator,
+) -> dict[str, float]:
+    """Mode homogeneity, style purity, reconstruction, trajectory control on one crop of every real clip."""
+    model = loaded.model
+    joints, mask = np.asarray(batch.joints, np.float32), np.asarray(batch.mask, bool)
+    labels = np.asarray(batch.actions)
+    out: dict[str, float] = {}
+    with torch.inference_mode():
+        codes, _ = model.encode(torch.from_numpy(np.ascontiguousarray(batch.lmp)), torch.from_numpy(mask))
+        ends = torch.from_numpy(np.ascontiguousarray(batch.ends, np.float32))
+        recon, _ = model.decode(codes, torch.from_numpy(labels.astype(np.int64)), ends)
+    out["reconstruction_error_m"] = mpjpe(recon.numpy(), joints, mask)
+    codes_np = codes.numpy()
+    bank = loaded.bank
+    if bank is None:
+        return out
+    groups = _by_action(joints, labels)
+    modes = {a: bank.modes[a].predict(codes_np[labels == a]) for a in groups if a in bank.modes}
+    if modes:
+        out["mode_homogeneity"] = mode_homogeneity({a: groups[a] for a in modes}, modes)
+        if styles is not None:
+            out["style_nmi"], out["style_ari"] = mode_purity(modes, {a: styles[labels == a] for a in modes})
+    out.update(_control_metrics(loaded, groups, classifier, strategy, n_codes, rng))
+    return out
+
+
+def _control_metrics(
+    loaded: LoadedModel,
+    real: dict[int, np.ndarray],
+    classifier: Classifier | None,
+    strategy: str,
+    n_codes: int,
+    rng: np.random.Generator,
+) -> dict[str, float]:
+    """End-point error (m, % of the action's mean root travel) and accuracy for targets inside/outside."""
+    bank, root = loaded.bank, loaded.skeleton.root
+    if bank is None or not loaded.config.use_end_location:
+        return {}
+    err: dict[str, list[float]] = {"in": [], "out": []}
+    pct: dict[str, list[float]] = {"in": [], "out": []}
+    hits: dict[str, list[np.ndarray]] = {"in": [], "out": []}
+    for a, windows in real.items():
+        ends = bank.ends[bank.indices_of(a)]
+        if a not in bank.modes or len(ends) < 2:
+            continue
+        codes, _ = bank.modes[a].sample(n_codes, rng, strategy=strategy)
+        z = torch.from_numpy(np.repeat(np.asarray(codes, np.float32), CONTROL_POINTS, axis=0))
+        travel = float(root_travel(windows[:, :, root]).mean())
+        for key, targets in zip(
+            ("in", "out"), control_targets(ends, n_codes, rng, CONTROL_POINTS), strict=True
+        ):
+            flat = targets.reshape(-1, 3).astype(np.float32)
+            with torch.inference_mode():
+                joints, _ = loaded.model.decode(z, torch.full((len(z),), a), torch.from_numpy(flat))
+            joints = joints.numpy()
+            e = end_point_errors(joints[:, :, root], flat)
+            err[key].append(float(e.mean()))
+            pct[key].append(100.0 * float(e.mean()) / max(travel, 1e-6))
+            if classifier is not None:
+                windows_c = canonical_windows(
+                    [Motion(j, loaded.fps, loaded.skeleton) for j in joints], classifier.config.window
+                )
+                hits[key].append(classifier.classify(windows_c)[1] == a)
+    if not err["in"]:
+        return {}
+    out = {}
+    for key, suffix in (("in", ""), ("out", "_out")):
+        out[f"end_error{suffix}_m"] = float(np.mean(err[key]))
+        out[f"end_error{suffix}_pct"] = float(np.mean(pct[key]))
+        if hits[key]:
+            out[f"control_accuracy{suffix}"] = float(np.concatenate(hits[key]).mean())
+    return out
+
+
+def evaluate(
+    loaded: LoadedModel,
+    real_clips: Sequence[Motion],
+    classifier: Classifier | None,
+    *,
+    repeats: int = 10,
+    n_per_action: int = 50,
+    seed: int = 0,
+    strategy: str = "mode_preserving",
+    progress: Callable[[str, float], None] | None = None,
+    cancel: Callable[[], bool] | None = None,
+) -> dict[str, Any]:
+    """``{"real": {METRIC: {"mean", "ci95"}}, "generated": {...}, "meta": {...}}`` over ``repeats`` sets.
+
+    Each repeat draws ``n_per_action`` real windows per action twice (sets A and B), generates
+    ``n_per_action`` motions per action, and crops one window of every real clip for the model metrics.
+    Real: accuracy/diversity/multimodality/APD of A, FID and n-APD of A against B. Generated: the same
+    against A, plus mode homogeneity and style purity of the real clips grouped by the model's modes,
+    reconstruction error, and trajectory control (``n_per_action // 10`` codes × 10 end points per action).
+    Without a classifier the classifier metrics (accuracy, FID, diversity, multimodality) are left out.
+    """
+    if strategy not in EVAL_STRATEGIES:
+        raise ConfigError(
+            f"unknown strategy {strategy!r} for evaluation; choose from {', '.join(EVAL_STRATEGIES)}"
+        )
+    if repeats < 1 or n_per_action < 2:
+        raise ConfigError(f"need repeats >= 1 and n_per_action >= 2, got {repeats}, {n_per_action}")
+    check_compatible(loaded, real_clips, classifier)
+    names = list(loaded.action_names)
+    prepared = prepare_clips(real_clips, names, loaded.fps, loaded.window)
+    labels = prepared.actions
+    actions = np.unique(labels)
+    have_style = all("style" in c.meta for c in real_clips)
+    styles = np.array([str(c.meta["style"]) for c in real_clips]) if have_style else None
+    real_runs, gen_runs = [], []
+    for r in range(repeats):
+        if cancel is not None and cancel():
+            raise CancelledError("evaluation cancelled")
+        rng = np.random.default_rng([seed, r])
+        sets = [crop_windows(prepared, _pick(labels, actions, n_per_action, rng), rng) for _ in range(2)]
+        ref = _reference(sets[1], classifier)
+        real_runs.append(_set_metrics(sets[0].joints, sets[0].mask, sets[0].actions, ref, classifier, rng))
+        ref = _reference(sets[0], classifier)
+        gen, gen_labels = _generate(loaded, actions, n_per_action, strategy, rng)
+        gen_metrics = _set_metrics(gen, None, gen_labels, ref, classifier, rng)
+        every = crop_windows(prepared, np.arange(len(real_clips)), rng)
+        n_codes = max(1, n_per_action // CONTROL_POINTS)
+        gen_metrics.update(_model_metrics(loaded, every, styles, classifier, strategy, n_codes, rng))
+        gen_runs.append(gen_metrics)
+        log.info("evaluation repeat %d/%d done", r + 1, repeats)
+        if progress is not None:
+            progress("evaluating", (r + 1) / repeats)
+    meta = {
+        "model": str(loaded.path),
+        "classifier": None if classifier is None else str(classifier.path),
+        "classifier_test_accuracy": None if classifier is None else classifier.test_accuracy,
+        "n_real_clips": len(real_clips),
+        "actions": [names[a] for a in actions],
+        "repeats": repeats,
+        "n_per_action": n_per_action,
+        "seed": seed,
+        "strategy": strategy,
+        "window": loaded.window,
+        "fps": loaded.fps,
+        "ci": "95% interval 1.96·s/√n over repeats",
+    }
+    return {"real": summarize(real_runs), "generated": summarize(gen_runs), "meta": meta}
+
+
+def _reference(batch: WindowBatch, classifier: Classifier | None) -> dict[str, Any]:
+    """What a set is compared with: the real set's classifier features and per-action windows."""
+    joints, labels = np.asarray(batch.joints, np.float32), np.asarray(batch.actions)
+    feats = None if classifier is None else classifier.classify(joints, batch.mask)[0]
+    return {"features": feats, "groups": _by_action(joints, labels)}
+
+
+def _generate(
+    loaded: LoadedModel, actions: np.ndarray, n: int, strategy: str, rng: np.random.Generator
+) -> tuple[np.ndarray, np.ndarray]:
+    """Canonical windows (N, T, J, 3) and labels (N,) of ``n`` generated motions per action."""
+    motions, labels = [], []
+    for a in actions:
+        motions.extend(s.motion for s in sample(loaded, int(a), n, rng, strategy=strategy))
+        labels.extend([int(a)] * n)
+    return canonical_windows(motions, loaded.window), np.array(labels)
