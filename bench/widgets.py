@@ -57,6 +57,9 @@ def t_pose() -> np.ndarray:
 
 def bench_map(sizes: list[int], repeats: int, rng: np.random.Generator) -> list[dict[str, object]]:
     """Time map redraws for each number of points."""
+    from PySide6.QtCore import Qt
+    from PySide6.QtTest import QTest
+
     from widgets.latent_map import LatentMap
 
     rows: list[dict[str, object]] = []
@@ -79,7 +82,24 @@ def bench_map(sizes: list[int], repeats: int, rng: np.random.Generator) -> list[
             latent_map.set_visible_mask(masks[i])
             latent_map.plot.viewport().repaint()
 
-        for operation, step in (("set_points + repaint", redraw), ("set_visible_mask + repaint", remask)):
+        def click(i: int, xy: np.ndarray = xy) -> None:
+            pixel = latent_map.data_to_widget(xy[i % len(xy)]).toPoint()
+            QTest.mouseClick(latent_map.plot.viewport(), Qt.MouseButton.LeftButton, pos=pixel)
+
+        def select(i: int) -> None:
+            latent_map.set_selection(np.arange(i + 1, i + 21))
+            latent_map.plot.viewport().repaint()
+
+        operations = (
+            ("set_points + repaint", redraw),
+            ("set_visible_mask + repaint", remask),
+            ("click -> pointClicked", click),
+            ("set_selection(20) + repaint", select),
+        )
+        for operation, step in operations:
+            if operation == "click -> pointClicked":
+                latent_map.set_visible_mask(np.ones(n, dtype=bool))
+                latent_map.view_box.autoRange()
             median, p90 = _timings_ms(step, repeats)
             rows.append(
                 {

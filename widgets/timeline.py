@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from PySide6.QtCore import Qt, QTimer, Signal
-from PySide6.QtGui import QKeySequence, QShortcut
+from PySide6.QtGui import QCloseEvent, QKeySequence, QShortcut
 from PySide6.QtWidgets import QCheckBox, QComboBox, QHBoxLayout, QLabel, QSlider, QToolButton, QWidget
 
 SPEEDS: tuple[float, ...] = (0.25, 0.5, 1.0, 2.0, 4.0)
@@ -138,3 +138,8 @@ class Timeline(QWidget):
 
     def _update_counter(self) -> None:
         self.counter.setText(f"{self.frame() + 1} / {self._length}  ({self.frame() / self._fps:.2f} s)")
+
+    def closeEvent(self, event: QCloseEvent) -> None:  # noqa: N802
+        """Stop playback when the widget closes."""
+        self.pause()
+        super().closeEvent(event)

@@ -36,7 +36,8 @@ def test_stops_at_end_without_loop(qtbot, timeline: Timeline) -> None:
     assert timeline.frame() == 9
     timeline.play()  # playing again from the end restarts at 0
     assert timeline.frame() == 0 and timeline.is_playing()
-    timeline.pause()
+    timeline.close()
+    assert not timeline.is_playing()
 
 
 def test_speed_sets_timer_interval(timeline: Timeline) -> None:

@@ -67,6 +67,7 @@ def test_side_by_side_layout_offsets_skeletons(viewport: SkeletonViewport) -> No
 
 
 def test_follow_moves_camera_with_root(viewport: SkeletonViewport) -> None:
+    np.testing.assert_allclose(viewport.plotter.camera.up, [0.0, 1.0, 0.0], atol=1e-9)
     viewport.set_follow(True)
     viewport.set_poses(POSE[None])
     focal = np.asarray(viewport.plotter.camera.focal_point)
