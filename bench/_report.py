@@ -18,14 +18,15 @@ _TITLE = (
 
 
 def machine() -> str:
-    """One line describing this machine: CPU model, cores, OS, Python."""
+    """One line describing this machine: CPU model, cores, OS, Python and the load when measured."""
     cpu = platform.processor() or platform.machine()
     cpuinfo = Path("/proc/cpuinfo")
     if cpuinfo.is_file():
         found = re.search(r"^model name\s*:\s*(.+)$", cpuinfo.read_text(errors="replace"), re.MULTILINE)
         cpu = found.group(1).strip() if found else cpu
     system = f"{platform.system()} {platform.release()}"
-    return f"{cpu}, {os.cpu_count()} cores, {system}, Python {platform.python_version()}"
+    load = f", load average {os.getloadavg()[0]:.1f}" if hasattr(os, "getloadavg") else ""
+    return f"{cpu}, {os.cpu_count()} cores, {system}, Python {platform.python_version()}{load}"
 
 
 def format_section(section: str, rows: list[dict[str, Any]], command: str) -> str:
