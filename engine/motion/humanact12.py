@@ -125,7 +125,7 @@ def read_actor_pickle(path: str | Path, allow_pickle: bool = False, fps: float =
         raise MotionFormatError(f"{len(clips)} clips but {len(labels)} labels", path)
     skeleton = smpl24_skeleton()
     motions = []
-    for i, (joints, label) in enumerate(zip(clips, labels)):
+    for i, (joints, label) in enumerate(zip(clips, labels, strict=True)):
         if not isinstance(label, int | np.integer) or not 0 <= int(label) < len(ACTIONS):
             raise MotionFormatError(f"clip {i}: label {label!r} is not a coarse class id 0..11", path)
         try:

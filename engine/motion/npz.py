@@ -103,7 +103,9 @@ def read_npz(path: str | Path) -> Motion:
     if "end_site_parents" in data:
         site_parents = _check(data, "end_site_parents", "iu", 1, path)
         site_offsets = _check(data, "end_site_offsets", "f", 2, path, (len(site_parents), 3))
-        sites = tuple((int(p), tuple(float(v) for v in o)) for p, o in zip(site_parents, site_offsets))
+        sites = tuple(
+            (int(p), tuple(float(v) for v in o)) for p, o in zip(site_parents, site_offsets, strict=True)
+        )
     action = str(_check(data, "action", "U", 0, path)) or None
     try:
         skeleton = Skeleton(tuple(names.tolist()), parents, offsets, sites, "m")

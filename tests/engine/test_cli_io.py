@@ -87,3 +87,14 @@ def test_console_script(tmp_path: Path) -> None:
     assert result.returncode == 1
     assert result.stderr.strip().startswith("odmo info: error:") and str(bad) in result.stderr
     assert "Traceback" not in result.stderr and result.stdout == ""
+
+
+def test_info_of_a_dataset_folder(tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys) -> None:
+    monkeypatch.setenv("ODMO_CACHE_DIR", str(tmp_path / "cache"))
+    folder = tmp_path / "humanact12"
+    folder.mkdir()
+    for name in ["P01G01R01F0001T0010A0101", "P02G01R01F0001T0010A0201", "P02G01R01F0001T0010A0203"]:
+        np.save(folder / f"{name}.npy", np.zeros((5, 24, 3), np.float32))
+    assert main(["info", str(folder)]) == 0
+    out = capsys.readouterr().out
+    assert "clips:       3 (15 frames)" in out and "  walk: 2" in out and "  warm_up: 1" in out
