@@ -67,6 +67,7 @@ class SkeletonViewport(QWidget):
         self._end_actor.SetVisibility(False)
         self._follow = False
         self._follow_anchor: np.ndarray | None = None
+        self._closed = False
         self.reset_camera()
 
     # ----- skeletons ----------------------------------------------------------------------------
@@ -110,11 +111,16 @@ class SkeletonViewport(QWidget):
         self._mesh.points[:] = (poses + self._offsets[:, None, :]).reshape(-1, 3)
         if self._follow:
             self._follow_root()
-        self.plotter.render()
+        self._schedule_render()
 
     def render_now(self) -> None:
-        """Render synchronously (for timing; normal updates are scheduled)."""
-        self.plotter.ren_win.Render()
+        """Render synchronously (for timing; updates otherwise render at the next paint)."""
+        if not self._closed:
+            self.plotter.ren_win.Render()
+
+    def _schedule_render(self) -> None:
+        # The interactor renders in paintGL; Qt merges the update requests of one event-loop pass.
+        self.plotter.interactor.update()
 
     def set_layout(self, layout: Layout, spacing: float = 1.0) -> None:
         """Overlay the skeletons, or place them ``spacing`` metres apart along x."""
@@ -149,7 +155,7 @@ class SkeletonViewport(QWidget):
             self._trajectory_actor = self.plotter.add_mesh(
                 pv.lines_from_points(pts), color=ACCENT, line_width=3, pickable=False, reset_camera=False
             )
-        self.plotter.render()
+        self._schedule_render()
 
     def set_end_marker(self, xyz: Sequence[float] | np.ndarray | None) -> None:
         """Show a marker at the requested end location ``xyz`` (3,); None hides it."""
@@ -158,7 +164,7 @@ class SkeletonViewport(QWidget):
         else:
             self._end_actor.SetPosition(*np.asarray(xyz, dtype=np.float64).reshape(3))
             self._end_actor.SetVisibility(True)
-        self.plotter.render()
+        self._schedule_render()
 
     def set_ghosts(self, frames: np.ndarray | None) -> None:
         """Draw faint copies of one skeleton at ``frames`` (G, J, 3) (a time-lapse trail); None clears."""
@@ -179,7 +185,7 @@ class SkeletonViewport(QWidget):
                 pickable=False,
                 reset_camera=False,
             )
-        self.plotter.render()
+        self._schedule_render()
 
     # ----- camera -------------------------------------------------------------------------------
     def reset_camera(self) -> None:
@@ -196,7 +202,7 @@ class SkeletonViewport(QWidget):
         position = center + np.array([0.5, 0.35, 1.0]) * 1.6 * extent
         self.plotter.camera_position = [tuple(position), tuple(center), (0.0, 1.0, 0.0)]
         self._follow_anchor = None
-        self.plotter.render()
+        self._schedule_render()
 
     def set_follow(self, follow: bool) -> None:
         """Make the camera follow the (mean) root of the skeletons on the floor plane."""
@@ -216,5 +222,6 @@ class SkeletonViewport(QWidget):
     # ----- lifetime -----------------------------------------------------------------------------
     def closeEvent(self, event: QCloseEvent) -> None:  # noqa: N802
         """Finalise the VTK plotter before the widget goes away."""
+        self._closed = True
         self.plotter.close()
         super().closeEvent(event)

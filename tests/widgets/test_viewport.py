@@ -117,3 +117,14 @@ def test_close_finalises_plotter_without_leaks(qtbot) -> None:
 def test_bad_parents_rejected(viewport: SkeletonViewport) -> None:
     with pytest.raises(ValueError, match="tree"):
         viewport.set_skeletons([0, 0, 1], 1)
+
+
+def test_updates_in_one_event_pass_share_one_render(qtbot, viewport: SkeletonViewport) -> None:
+    renders: list[str] = []
+    viewport.plotter.ren_win.AddObserver("EndEvent", lambda *_: renders.append("render"))
+    for dx in np.linspace(0.0, 0.5, 5, dtype=np.float32):
+        viewport.set_poses((POSE + np.array([dx, 0.0, 0.0], dtype=np.float32))[None])
+    viewport.set_end_marker((1.0, 0.0, 1.0))
+    assert renders == []
+    qtbot.wait(50)
+    assert len(renders) == 1
