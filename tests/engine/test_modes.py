@@ -1,0 +1,153 @@
+"""Mode discovery and sampling against planted clusters and counting statistics."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy.stats import chisquare
+from sklearn.metrics import adjusted_rand_score
+
+from engine.errors import ConfigError
+from engine.latent.modes import ModeModel, choose_k, discover_modes
+
+
+def planted(
+    sizes: list[int], dim: int = 20, spread: float = 8.0, seed: int = 0
+) -> tuple[np.ndarray, np.ndarray]:
+    """Well-separated Gaussian clusters: codes (N, dim) and their true cluster (N,)."""
+    rng = np.random.default_rng(seed)
+    centers = rng.normal(0.0, spread, (len(sizes), dim))
+    truth = np.repeat(np.arange(len(sizes)), sizes)
+    return centers[truth] + rng.normal(size=(len(truth), dim)), truth
+
+
+@pytest.fixture(scope="module")
+def three() -> tuple[np.ndarray, np.ndarray, ModeModel]:
+    codes, truth = planted([120, 80, 100])
+    return codes, truth, discover_modes(codes, seed=0)
+
+
+def test_recovers_planted_clusters(three: tuple[np.ndarray, np.ndarray, ModeModel]) -> None:
+    codes, truth, model = three
+    assert model.k_chosen == 3 and model.n_modes == 3
+    assert adjusted_rand_score(truth, model.labels) > 0.9
+    assert sorted(model.silhouette) == list(range(3, 12))
+    assert model.silhouette[3] == max(model.silhouette.values())
+    np.testing.assert_allclose(np.sort(model.weights), np.sort([120, 80, 100]) / 300, atol=0.02)
+    np.testing.assert_array_equal(model.predict(codes), model.labels)
+    np.testing.assert_array_equal(model.sizes(), np.bincount(model.labels))
+    np.testing.assert_allclose(model.conventional_mean, codes.mean(axis=0))
+
+
+def test_recovers_five_clusters() -> None:
+    codes, truth = planted([60] * 5, seed=1)
+    model = discover_modes(codes, seed=0)
+    assert model.k_chosen == 5
+    assert adjusted_rand_score(truth, model.labels) > 0.9
+
+
+def test_deterministic_for_a_seed() -> None:
+    codes, _ = planted([50, 50, 50], spread=1.5, seed=2)
+    a, b = discover_modes(codes, k_range=(3, 5), seed=7), discover_modes(codes, k_range=(3, 5), seed=7)
+    np.testing.assert_array_equal(a.means, b.means)
+    np.testing.assert_array_equal(a.labels, b.labels)
+    assert a.silhouette == b.silhouette
+
+
+def test_choose_k_rule() -> None:
+    assert choose_k({3: 0.5, 4: 0.6, 5: 0.8, 6: 0.6}) == 5
+    assert choose_k({3: 0.8, 4: 0.6}) == 3
+    assert choose_k({3: 0.50, 4: 0.52}) == 3  # 0.50 > 0.95 × 0.52: a small rise does not count
+    assert choose_k({3: 0.3, 4: 0.5, 5: 0.7}) == 5  # never drops: the best
+    assert choose_k({3: float("nan"), 4: 0.2, 5: 0.4}) == 5
+    assert choose_k({3: float("nan"), 4: float("nan")}) is None
+
+
+def test_small_components_are_dropped_and_weights_renormalised() -> None:
+    codes, truth = planted([100, 100, 6], seed=3)
+    model = discover_modes(codes, seed=0)
+    assert model.k_chosen == 3
+    assert model.n_modes == 2
+    assert model.weights.sum() == pytest.approx(1.0)
+    np.testing.assert_allclose(model.weights, [0.5, 0.5], atol=0.03)
+    assert set(model.labels) == {0, 1}
+    assert adjusted_rand_score(truth[truth < 2], model.labels[truth < 2]) == pytest.approx(1.0)
+
+
+@pytest.mark.parametrize("n", [1, 2, 5, 9])
+def test_tiny_actions_get_one_conventional_mode(n: int) -> None:
+    codes, _ = planted([n], seed=4)
+    model = discover_modes(codes, seed=0)
+    assert model.n_modes == 1
+    np.testing.assert_allclose(model.means[0], codes.mean(axis=0))
+    np.testing.assert_allclose(model.covariances[0], model.conventional_cov)
+    assert all(np.isnan(model.silhouette[k]) for k in range(max(n, 3), 12))
+    samples, modes = model.sample(4, np.random.default_rng(0))
+    assert samples.shape == (4, 20) and np.all(modes == 0)
+
+
+def test_discover_modes_rejects_bad_input() -> None:
+    with pytest.raises(ConfigError):
+        discover_modes(np.zeros((0, 4)))
+    with pytest.raises(ConfigError):
+        discover_modes(np.zeros(5))
+    with pytest.raises(ConfigError):
+        discover_modes(np.ones((20, 3)), k_range=(5, 3))
+
+
+def test_mode_preserving_sampling_follows_weights(three: tuple[np.ndarray, np.ndarray, ModeModel]) -> None:
+    _, _, model = three
+    n = 30_000
+    codes, modes = model.sample(n, np.random.default_rng(1))
+    assert codes.shape == (n, 20) and codes.dtype == np.float32
+    assert chisquare(np.bincount(modes, minlength=3), model.weights * n).pvalue > 1e-3
+    for k in range(3):
+        np.testing.assert_allclose(codes[modes == k].mean(axis=0), model.means[k], atol=0.1)
+    again, again_modes = model.sample(n, np.random.default_rng(1))
+    np.testing.assert_array_equal(codes, again)
+    np.testing.assert_array_equal(modes, again_modes)
+
+
+def test_user_weights_one_mode_and_conventional(three: tuple[np.ndarray, np.ndarray, ModeModel]) -> None:
+    _, _, model = three
+    rng = np.random.default_rng(2)
+    _, modes = model.sample(20_000, rng, strategy="weights", weights=np.array([2.0, 0.0, 6.0]))
+    counts = np.bincount(modes, minlength=3)
+    assert counts[1] == 0
+    assert chisquare(counts[[0, 2]], np.array([0.25, 0.75]) * 20_000).pvalue > 1e-3
+    codes, modes = model.sample(500, rng, strategy="mode", mode=1)
+    assert np.all(modes == 1)
+    np.testing.assert_allclose(codes.mean(axis=0), model.means[1], atol=0.3)
+    codes, modes = model.sample(20_000, rng, strategy="conventional")
+    assert np.all(modes == -1)
+    np.testing.assert_allclose(np.cov(codes, rowvar=False), model.conventional_cov, atol=2.0)
+    assert model.sample(0, rng)[0].shape == (0, 20)
+
+
+@pytest.mark.parametrize(
+    ("strategy", "kwargs"),
+    [
+        ("weights", {"weights": np.array([1.0, -1.0, 1.0])}),
+        ("weights", {"weights": np.zeros(3)}),
+        ("weights", {"weights": np.ones(2)}),
+        ("weights", {}),
+        ("mode", {"mode": 3}),
+        ("mode", {}),
+        ("nearest", {}),
+    ],
+)
+def test_sampling_rejects_bad_requests(
+    three: tuple[np.ndarray, np.ndarray, ModeModel], strategy: str, kwargs: dict
+) -> None:
+    with pytest.raises(ConfigError):
+        three[2].sample(3, np.random.default_rng(0), strategy=strategy, **kwargs)
+
+
+def test_arrays_round_trip(three: tuple[np.ndarray, np.ndarray, ModeModel]) -> None:
+    model = three[2]
+    arrays = model.to_arrays("m/")
+    assert all(np.asarray(v).dtype.kind != "O" for v in arrays.values())
+    back = ModeModel.from_arrays("m/", arrays)
+    for name in ("weights", "means", "covariances", "labels", "conventional_mean", "conventional_cov"):
+        np.testing.assert_array_equal(getattr(back, name), getattr(model, name))
+    assert back.silhouette == model.silhouette and back.k_chosen == model.k_chosen
