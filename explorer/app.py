@@ -1,11 +1,138 @@
-"""Entry point of ``odmo-explorer``."""
+"""Entry point of ``odmo-explorer``: parse arguments, build the window and controller, run Qt."""
 
 from __future__ import annotations
 
+import argparse
+import logging
 import sys
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+from PySide6.QtCore import QSettings, QTimer
+from PySide6.QtWidgets import QApplication
+
+DEFAULT_MODEL = Path(__file__).resolve().parents[1] / "resources" / "models" / "bandai2-odmo"
+SCREENSHOT_IDLE_TIMEOUT_S = 120.0
+
+log = logging.getLogger(__name__)
 
 
-def main() -> int:
-    """Launch the explorer (placeholder until the app lands)."""
-    print("odmo-explorer: the explorer window is not built yet; use the `odmo` CLI.", file=sys.stderr)
-    return 0
+def build_parser() -> argparse.ArgumentParser:
+    """The argument parser of ``odmo-explorer``."""
+    parser = argparse.ArgumentParser(
+        prog="odmo-explorer", description="Explore the latent space of an ODMO motion model."
+    )
+    parser.add_argument(
+        "--model", type=Path, help=f"model folder (default: the bundled {DEFAULT_MODEL.name})"
+    )
+    parser.add_argument(
+        "--data", type=Path, help="dataset folder: real clips play beside their reconstructions"
+    )
+    parser.add_argument(
+        "--screenshot", type=Path, metavar="FILE.png", help="render the window to FILE and exit"
+    )
+    parser.add_argument(
+        "--after", type=float, default=3.0, metavar="SECONDS", help="wait this long before --screenshot"
+    )
+    parser.add_argument("--projection", choices=("pca", "tsne", "umap"), default="pca", help="initial map")
+    parser.add_argument("--settings", type=Path, help="settings file (default: the user's Qt settings)")
+    parser.add_argument("-v", "--verbose", action="store_true", help="log details")
+    return parser
+
+
+@dataclass
+class Explorer:
+    """A running explorer: the window, its controller and its state."""
+
+    window: object
+    controller: object
+
+    def close(self) -> None:
+        """Stop the workers and close the window (saving its layout)."""
+        self.controller.shutdown()
+        self.window.close()
+
+
+def open_settings(path: Path | None) -> QSettings:
+    """Qt settings in ``path`` (INI) or the user's default location."""
+    if path is not None:
+        return QSettings(str(path), QSettings.Format.IniFormat)
+    return QSettings("ODMO", "ODMO Explorer")
+
+
+def create_explorer(
+    model: Path | None, data: Path | None, settings: QSettings, projection: str = "pca"
+) -> Explorer:
+    """Build the window and controller and start loading ``model`` (or the bundled one) and ``data``."""
+    from explorer.controller import Controller
+    from explorer.main_window import MainWindow
+
+    window = MainWindow(settings)
+    controller = Controller(window)
+    controller.state.projection = projection
+    target = model if model is not None else DEFAULT_MODEL
+    if model is None and not DEFAULT_MODEL.is_dir():
+        window.show_status(
+            f"The bundled model ({DEFAULT_MODEL.name}) is not installed yet: open a model folder with "
+            "File ▸ Open model folder… or start with --model DIR."
+        )
+    else:
+        controller.open_model(target)
+    if data is not None:
+        controller.open_data(data)
+    return Explorer(window, controller)
+
+
+def take_screenshot(explorer: Explorer, path: Path) -> None:
+    """Render the whole window (3-D view included) to ``path`` as a PNG."""
+    from explorer.export import save_png
+
+    window = explorer.window
+    window.viewport.render_now()
+    meta = {"model": str(explorer.controller.state.model.path) if explorer.controller.state.model else None}
+    save_png(window.grab().toImage(), path, meta)
+
+
+def _schedule_screenshot(
+    app: QApplication, explorer: Explorer, path: Path, after: float, codes: list[int]
+) -> None:
+    """After ``after`` seconds and once no task is running, save the screenshot and quit."""
+    deadline = time.monotonic() + after + SCREENSHOT_IDLE_TIMEOUT_S
+
+    def attempt() -> None:
+        busy = explorer.controller.tasks.active
+        if busy and time.monotonic() < deadline:
+            QTimer.singleShot(200, attempt)
+            return
+        try:
+            take_screenshot(explorer, path)
+            print(f"odmo-explorer: screenshot written to {path}", file=sys.stderr)
+        except OSError as exc:
+            print(f"odmo-explorer: error: cannot write {path}: {exc}", file=sys.stderr)
+            codes.append(1)
+        app.quit()
+
+    QTimer.singleShot(int(after * 1000), attempt)
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run ``odmo-explorer``; returns the exit code."""
+    args = build_parser().parse_args(argv)
+    logging.basicConfig(level=logging.INFO if args.verbose else logging.WARNING, format="%(message)s")
+    app = QApplication.instance() or QApplication(sys.argv[:1])
+    app.setApplicationName("ODMO Explorer")
+    app.setOrganizationName("ODMO")
+    explorer = create_explorer(args.model, args.data, open_settings(args.settings), args.projection)
+    explorer.window.show()
+    codes: list[int] = []
+    if args.screenshot is not None:
+        _schedule_screenshot(app, explorer, args.screenshot, args.after, codes)
+    app.exec()
+    explorer.close()
+    return codes[0] if codes else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

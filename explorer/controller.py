@@ -1,0 +1,865 @@
+"""The controller: the one place that connects widget signals, the app state and engine calls."""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from PySide6.QtCore import QObject, Signal
+from PySide6.QtWidgets import QFileDialog
+
+from engine import generate
+from engine.errors import ConfigError, ModelFormatError, OdmoError
+from engine.latent.bank import LatentBank
+from engine.latent.geometry import points_in_polygon
+from engine.latent.modes import ModeModel
+from engine.latent.projection import Projection, make_projection
+from engine.modelio import LoadedModel, load_model
+from engine.motion.motion import Motion
+from explorer import export
+from explorer.main_window import MainWindow
+from explorer.map_layers import (
+    category_colors,
+    gaussian_outline,
+    mode_labels,
+    mode_overlays,
+    motion_energy,
+    point_colors,
+    tooltips,
+)
+from explorer.state import AppState, Decoded, ExtraPoints
+from explorer.workers import Cancel, LatestRunner, Progress, TaskRunner
+
+log = logging.getLogger(__name__)
+
+MAX_PLAYED = 12  # motions played at once from a selection
+VARIATIONS = 8
+LOCAL_MODE_SAMPLES = 6
+PANEL_STRATEGIES = {"one_mode": "mode"}  # mode panel key -> engine strategy
+
+
+class Controller(QObject):
+    """Wires a :class:`MainWindow` to an :class:`AppState` and the engine.
+
+    Signals: ``modelLoaded(object)`` after a model is shown, ``errorOccurred(str)`` for every error
+    shown to the user, ``shownChanged()`` once new motions are in the viewport.
+    """
+
+    modelLoaded = Signal(object)  # noqa: N815
+    errorOccurred = Signal(str)  # noqa: N815
+    shownChanged = Signal()  # noqa: N815
+
+    def __init__(self, window: MainWindow, state: AppState | None = None, seed: int = 0) -> None:
+        super().__init__(window)
+        self.window = window
+        self.state = state if state is not None else AppState()
+        self.decoder = LatestRunner("decode", self)
+        self.tasks = TaskRunner(2, self)
+        self._seeds = np.random.SeedSequence(seed)
+        self._projections: dict[str, Projection] = {}
+        self._energy: np.ndarray | None = None
+        self._real: dict[str, Motion] = {}
+        self._weights: dict[int, np.ndarray] = {}
+        self._local_mode: tuple[ModeModel, np.ndarray] | None = None
+        self._drag_from: int | None = None
+        self._played: list[Motion] = []
+        self._model_task = None
+        self._connect()
+
+    # -- wiring --------------------------------------------------------------------------------------
+
+    def _connect(self) -> None:
+        w, ev = self.window, self.state.events
+        w.latent_map.pointClicked.connect(self.click_point)
+        w.latent_map.emptyClicked.connect(self.click_empty)
+        w.latent_map.dragStarted.connect(self.drag_start)
+        w.latent_map.dragMoved.connect(self.drag_move)
+        w.latent_map.dragFinished.connect(self.drag_finish)
+        w.latent_map.lassoFinished.connect(self.lasso)
+        w.latent_map.hovered.connect(self._hover)
+        w.latent_map.legendToggled.connect(self._legend_toggled)
+        w.mode_panel.weightsChanged.connect(self._weights_changed)
+        w.mode_panel.sampleRequested.connect(self.sample)
+        w.timeline.frameChanged.connect(lambda f: setattr(self.state, "frame", int(f)))
+        w.trajectory.endRequested.connect(self.set_end)
+        w.trajectory.followPathRequested.connect(self.follow_path)
+
+        w.projection_combo.currentIndexChanged.connect(
+            lambda _i: setattr(self.state, "projection", w.projection_combo.currentData())
+        )
+        w.color_combo.currentIndexChanged.connect(
+            lambda _i: setattr(self.state, "color_by", w.color_combo.currentData())
+        )
+        w.action_combo.currentIndexChanged.connect(
+            lambda i: i >= 0 and setattr(self.state, "focus_action", int(i))
+        )
+        w.layout_combo.currentIndexChanged.connect(
+            lambda _i: setattr(self.state, "layout", w.layout_combo.currentData())
+        )
+        w.open_model_action.triggered.connect(self._ask_model)
+        w.open_data_action.triggered.connect(self._ask_data)
+        w.export_motion_action.triggered.connect(lambda: self._ask_export("motion"))
+        w.export_timelapse_action.triggered.connect(lambda: self._ask_export("timelapse"))
+        w.export_map_action.triggered.connect(lambda: self._ask_export("map"))
+        w.export_selection_action.triggered.connect(lambda: self._ask_export("selection"))
+        w.play_selection_action.triggered.connect(self.play_selection)
+        w.variations_action.triggered.connect(self.sample_variations)
+        w.fit_mode_action.triggered.connect(self.fit_local_mode)
+        w.clear_selection_action.triggered.connect(self.clear_selection)
+        w.reset_camera_action.triggered.connect(w.viewport.reset_camera)
+        w.cancel_button.clicked.connect(self.tasks.cancel_all)
+
+        self.decoder.finished.connect(self._decoded)
+        self.decoder.failed.connect(lambda _r, exc: self.report_error("Decoding failed", exc))
+        self.tasks.started.connect(self._task_started)
+        self.tasks.ended.connect(self._task_ended)
+
+        ev.model.connect(self._model_changed)
+        ev.projection.connect(self._projection_changed)
+        ev.embedding.connect(self._redraw_map)
+        ev.color_by.connect(self._color_by_changed)
+        ev.hidden_actions.connect(self._apply_visibility)
+        ev.selection.connect(self._apply_selection)
+        ev.focus_action.connect(self._focus_changed)
+        ev.extra.connect(self._draw_extra)
+        ev.marker.connect(lambda m: self.window.latent_map.set_marker(m))
+        ev.shown.connect(self._show_motions)
+        ev.layout.connect(lambda _l: self._show_motions(self.state.shown))
+        ev.frame.connect(self._set_frame)
+
+    # -- helpers -------------------------------------------------------------------------------------
+
+    @property
+    def loaded(self) -> LoadedModel:
+        """The loaded model; ConfigError when none is."""
+        if self.state.model is None:
+            raise ConfigError("no model is loaded (File ▸ Open model folder…)")
+        return self.state.model
+
+    @property
+    def bank(self) -> LatentBank:
+        """The loaded model's latent bank."""
+        bank = self.loaded.bank
+        if bank is None:
+            raise ModelFormatError(f"{self.loaded.path}: the model has no latent bank (run `odmo bank`)")
+        return bank
+
+    @property
+    def projection(self) -> Projection | None:
+        """The fitted projection the map shows, or None while it is being computed."""
+        return self._projections.get(self.state.projection)
+
+    def _new_seed(self) -> int:
+        return int(self._seeds.spawn(1)[0].generate_state(1)[0])
+
+    def report_error(self, title: str, exc: BaseException | str) -> None:
+        """Show an error to the user (message box + status bar) and emit ``errorOccurred``."""
+        text = str(exc) if isinstance(exc, OdmoError | str) else f"{type(exc).__name__}: {exc}"
+        log.warning("%s: %s", title, text)
+        self.window.show_error(title, text)
+        self.errorOccurred.emit(text)
+
+    def _guard(self, title: str, fn: Callable[[], Any]) -> Any:
+        try:
+            return fn()
+        except (OdmoError, OSError, ValueError) as exc:
+            self.report_error(title, exc)
+            return None
+
+    def _run_task(self, title: str, fn: Callable[[Progress, Cancel], Any], on_done: Callable[[Any], None]):
+        return self.tasks.run(title, fn, on_done, lambda exc: self.report_error(title, exc))
+
+    def _task_started(self, task: Any) -> None:
+        self.state.busy = task.title
+        self.window.show_progress(task.title, None)
+        task.progress.connect(lambda text, frac: self.window.show_progress(text or task.title, frac))
+
+    def _task_ended(self, _task: Any) -> None:
+        active = self.tasks.active
+        self.state.busy = active[-1].title if active else ""
+        if not active:
+            self.window.hide_progress()
+
+    # -- model and data ------------------------------------------------------------------------------
+
+    def open_model(self, path: str | Path) -> None:
+        """Load a model folder in the background; the current one stays until the new one is ready."""
+        path = Path(path)
+
+        def job(progress: Progress, _cancel: Cancel) -> LoadedModel:
+            progress(f"Loading {path.name}", 0.1)
+            loaded = load_model(path)
+            if loaded.bank is None:
+                raise ModelFormatError(f"{path}: the model has no latent bank (latent_bank.npz)")
+            return loaded
+
+        self._model_task = self._run_task(f"Loading model {path.name}", job, self._model_ready)
+
+    def _model_ready(self, loaded: LoadedModel) -> None:
+        self._projections = {k: v for k, v in loaded.bank.projections.items() if v.embedding_ is not None}
+        self._energy = None
+        self._weights = {}
+        self._local_mode = None
+        self._real = {}
+        self.state.selection = ()
+        self.state.extra = None
+        self.state.marker = None
+        self.state.shown = ()
+        self.state.model = loaded
+        if self.state.data_dir:
+            self.open_data(self.state.data_dir)
+
+    def open_data(self, path: str | Path) -> None:
+        """Load a dataset folder in the background so real clips play beside their reconstructions."""
+        path = Path(path)
+
+        def job(progress: Progress, cancel: Cancel) -> tuple[str, dict[str, Motion]]:
+            from engine.motion.datasets import load_folder
+
+            progress(f"Reading {path.name}", 0.05)
+            dataset = load_folder(path)
+            clips = {}
+            for clip in dataset.clips:
+                source = str(clip.meta.get("source", ""))
+                clips[source] = clip
+                clips.setdefault(Path(source).stem, clip)
+            return str(path), clips
+
+        def done(result: tuple[str, dict[str, Motion]]) -> None:
+            self.state.data_dir, self._real = result
+            self.window.show_status(f"Dataset {Path(result[0]).name}: {len(result[1])} clips available.")
+
+        self._run_task(f"Loading dataset {path.name}", job, done)
+
+    def _model_changed(self, loaded: LoadedModel | None) -> None:
+        w = self.window
+        if loaded is None:
+            return
+        bank = loaded.bank
+        names = list(loaded.action_names)
+        w.action_combo.blockSignals(True)
+        w.action_combo.clear()
+        w.action_combo.addItems(names)
+        w.action_combo.setCurrentIndex(0)
+        w.action_combo.blockSignals(False)
+        w.viewport.set_skeletons(loaded.skeleton.parents, 1)
+        self.state.focus_action = 0
+        self._projection_changed(self.state.projection)
+        w.latent_map.set_legend(names, [tuple(c) for c in category_colors(len(names))])
+        self._apply_visibility(self.state.hidden_actions)
+        self._focus_changed(self.state.focus_action)
+        w.setWindowTitle(f"ODMO Explorer — {loaded.path.name}")
+        w.show_status(
+            f"Model {loaded.path.name}: {len(bank.codes)} bank codes, {len(names)} actions, "
+            f"latent dim {loaded.config.latent_dim}. Click a point to decode it."
+        )
+        self.modelLoaded.emit(loaded)
+
+    # -- map -----------------------------------------------------------------------------------------
+
+    def _projection_changed(self, name: str) -> None:
+        index = self.window.projection_combo.findData(name)
+        if index >= 0 and index != self.window.projection_combo.currentIndex():
+            self.window.projection_combo.setCurrentIndex(index)
+        if self.state.model is None:
+            return
+        self.state.marker = None
+        projection = self._projections.get(name)
+        if projection is not None:
+            self.state.embedding = projection.embedding_
+            return
+        codes = self.bank.codes
+
+        def job(progress: Progress, _cancel: Cancel) -> Projection:
+            progress(f"Computing {name} map of {len(codes)} codes", 0.0)
+            return make_projection(name, seed=0).fit(codes)
+
+        def done(fitted: Projection) -> None:
+            self._projections[name] = fitted
+            if self.state.projection == name:
+                self.state.embedding = fitted.embedding_
+
+        self._run_task(f"Computing {name.upper()} projection", job, done)
+
+    def _redraw_map(self, embedding: np.ndarray | None) -> None:
+        if embedding is None or self.state.model is None:
+            return
+        bank = self.bank
+        colors = point_colors(bank, self.state.color_by, self._energy)
+        self.window.latent_map.set_points(embedding, colors, np.arange(len(bank.codes)), tooltips(bank))
+        self._apply_visibility(self.state.hidden_actions)
+        self._apply_selection(self.state.selection)
+        self._reproject_extra()
+        self._draw_overlays()
+        self.window.latent_map.set_marker(self.state.marker)
+
+    def _color_by_changed(self, color_by: str) -> None:
+        index = self.window.color_combo.findData(color_by)
+        if index >= 0 and index != self.window.color_combo.currentIndex():
+            self.window.color_combo.setCurrentIndex(index)
+        if color_by == "motion energy" and self._energy is None and self.state.model is not None:
+            self._compute_energy()
+        self._recolor()
+
+    def _recolor(self) -> None:
+        if self.state.embedding is None or self.state.model is None:
+            return
+        self._redraw_map(self.state.embedding)
+
+    def _compute_energy(self) -> None:
+        loaded, bank = self.loaded, self.bank
+
+        def job(progress: Progress, cancel: Cancel) -> np.ndarray:
+            energy = np.zeros(len(bank.codes))
+            done, chunk = 0, 256
+            for action in range(len(bank.action_names)):
+                idx = bank.indices_of(action)
+                for start in range(0, len(idx), chunk):
+                    if cancel():
+                        return energy
+                    part = idx[start : start + chunk]
+                    motions = generate.decode_batch(
+                        loaded, bank.codes[part].copy(), action, bank.ends[part].copy()
+                    )
+                    energy[part] = motion_energy(np.stack([m.joints for m in motions]), loaded.fps)
+                    done += len(part)
+                    progress("Decoding bank codes for motion energy", done / len(bank.codes))
+            return energy
+
+        def finished(energy: np.ndarray) -> None:
+            if self.state.model is loaded:
+                self._energy = energy
+                self._recolor()
+
+        self._run_task("Motion energy of every bank code", job, finished)
+
+    def _apply_visibility(self, hidden: frozenset[int]) -> None:
+        if self.state.model is None or self.state.embedding is None:
+            return
+        visible = ~np.isin(self.bank.actions, list(hidden))
+        self.window.latent_map.set_visible_mask(visible)
+
+    def _legend_toggled(self, action: int, on: bool) -> None:
+        hidden = set(self.state.hidden_actions)
+        (hidden.discard if on else hidden.add)(int(action))
+        self.state.hidden_actions = frozenset(hidden)
+
+    def _apply_selection(self, selection: tuple[int, ...]) -> None:
+        if self.state.embedding is not None:
+            self.window.latent_map.set_selection(np.asarray(selection, dtype=np.int64))
+
+    def _draw_overlays(self) -> None:
+        projection, embedding = self.projection, self.state.embedding
+        if self.state.model is None or projection is None or embedding is None:
+            return
+        curves, colors = mode_overlays(self.bank, self.state.focus_action, projection, embedding)
+        colors = [tuple(c) for c in colors]
+        if self._local_mode is not None:
+            mode, members = self._local_mode
+            curves.append(
+                gaussian_outline(mode.means[0], mode.covariances[0], projection, embedding[members])
+            )
+            colors.append((1.0, 0.8, 0.2, 1.0))
+        self.window.latent_map.set_overlays(curves, colors)
+
+    def _draw_extra(self, extra: ExtraPoints | None) -> None:
+        if extra is None:
+            self.window.latent_map.set_extra_points(None)
+            return
+        colors = category_colors(len(self.loaded.action_names))[extra.actions]
+        self.window.latent_map.set_extra_points(extra.xy, colors)
+
+    def _reproject_extra(self) -> None:
+        extra, projection = self.state.extra, self.projection
+        if extra is not None and projection is not None:
+            self.state.extra = ExtraPoints(extra.codes, extra.actions, projection.transform(extra.codes))
+
+    def _focus_changed(self, action: int) -> None:
+        w = self.window
+        if w.action_combo.currentIndex() != action:
+            w.action_combo.setCurrentIndex(action)
+        if self.state.model is None:
+            return
+        modes = self.bank.modes.get(action)
+        name = self.loaded.action_names[action]
+        if modes is None:
+            w.mode_panel.set_action_modes(name, [], [], 0, [], [])
+        else:
+            ks = sorted(modes.silhouette)
+            weights = self._weights.get(action, modes.weights / max(float(np.max(modes.weights)), 1e-12))
+            # The panel wants one row per kept mode; after small modes are dropped that is fewer than K.
+            chosen = int(modes.k_chosen) if modes.n_modes == modes.k_chosen else modes.n_modes
+            w.mode_panel.set_action_modes(
+                name,
+                ks,
+                [float(modes.silhouette[k]) for k in ks],
+                chosen,
+                [int(s) for s in modes.sizes()],
+                [float(v) for v in weights],
+            )
+        self._draw_overlays()
+
+    def _weights_changed(self, weights: object) -> None:
+        self._weights[self.state.focus_action] = np.asarray(weights, dtype=np.float64)
+
+    def _hover(self, index: int) -> None:
+        if index < 0 or self.state.model is None:
+            return
+        bank = self.bank
+        action = bank.action_names[int(bank.actions[index])]
+        self.window.statusBar().showMessage(f"#{index}  {bank.sources[index]}  ·  {action}", 4000)
+
+    # -- gestures ------------------------------------------------------------------------------------
+
+    def bank_item(self, index: int) -> tuple[np.ndarray, int, np.ndarray]:
+        """(code, action, end) of bank code ``index`` (copies: the bank's arrays are read-only)."""
+        bank = self.bank
+        return bank.codes[index].copy(), int(bank.actions[index]), bank.ends[index].copy()
+
+    def click_point(self, index: int) -> None:
+        """Select bank code ``index``, decode it (with the real clip beside it when data is loaded), play."""
+        if self.state.model is None:
+            return
+        self.state.selection = (int(index),)
+        self.state.marker = None
+        self._decode_bank([int(index)], with_real=True)
+
+    def _decode_bank(self, indices: Sequence[int], with_real: bool = False) -> None:
+        bank, real = self.bank, self._real
+
+        def job() -> tuple[Decoded, ...]:
+            items = []
+            labels = mode_labels(bank)
+            for i in indices:
+                code, action, end = self.bank_item(i)
+                mode = None if labels[i] < 0 else int(labels[i])
+                motion = _decode_one(self.loaded, code, action, end, mode)
+                name = f"#{i} {bank.sources[i]}"
+                items.append(Decoded(motion, f"{name} (decoded)", code, action, end, mode, None, i))
+                clip = real.get(str(bank.sources[i])) if with_real else None
+                if clip is not None:
+                    real_clip = _as_shown(clip, self.loaded.fps)
+                    items.append(Decoded(real_clip, f"{name} (real clip)", None, action))
+            return tuple(items)
+
+        self.decoder.submit(job)
+
+    def click_empty(self, x: float, y: float) -> None:
+        """Decode the code under map position (x, y) for the nearest visible point's action; mark it."""
+        if self.state.model is None or self.projection is None:
+            return
+        self._guard("Decoding failed", lambda: self._decode_at(np.array([x, y]), mark=True))
+
+    def _code_at(self, xy: np.ndarray) -> tuple[np.ndarray, int]:
+        """(code, action) under map point ``xy``: the projection's inverse, the nearest visible action."""
+        code = self.projection.inverse_transform(xy[None])[0].astype(np.float32)
+        visible = np.flatnonzero(~np.isin(self.bank.actions, list(self.state.hidden_actions)))
+        if len(visible) == 0:
+            raise ConfigError("every action is hidden; show one in the legend")
+        nearest = visible[np.argmin(np.linalg.norm(self.state.embedding[visible] - xy, axis=1))]
+        return code, int(self.bank.actions[nearest])
+
+    def _decode_at(self, xy: np.ndarray, mark: bool) -> None:
+        code, action = self._code_at(xy)
+        if mark:
+            self.state.selection = ()
+            self.state.marker = xy.astype(np.float64)
+        self._decode_code(code, action, f"map point ({xy[0]:.2f}, {xy[1]:.2f})")
+
+    def _decode_code(self, code: np.ndarray, action: int, label: str, end: np.ndarray | None = None) -> int:
+        loaded, bank = self.loaded, self.bank
+
+        def job() -> tuple[Decoded, ...]:
+            e = bank.end_location(code[None], action)[0] if end is None else np.asarray(end, np.float32)
+            modes = bank.modes.get(action)
+            mode = None if modes is None else int(modes.predict(code[None])[0])
+            motion = _decode_one(loaded, code, action, e, mode)
+            return (Decoded(motion, label, code, action, e, mode),)
+
+        return self.decoder.submit(job)
+
+    def drag_start(self, index: int) -> None:
+        """Start dragging from bank code ``index``."""
+        if self.state.model is not None:
+            self._drag_from = int(index)
+            self.state.selection = (int(index),)
+
+    def drag_move(self, x: float, y: float) -> None:
+        """Live-decode the code under the cursor (only the newest request is decoded)."""
+        if self._drag_from is None or self.projection is None:
+            return
+        xy = np.array([x, y])
+        target = self._snap(xy)
+        if target is not None:
+            code, action, end = self.bank_item(target)
+            self._decode_code(code, action, f"drag → #{target}", end)
+        else:
+            code, action = self._code_at(xy)
+            self._decode_code(code, int(self.bank.actions[self._drag_from]), f"drag → ({x:.2f}, {y:.2f})")
+        self.state.marker = xy
+
+    def drag_finish(self, x: float, y: float) -> None:
+        """Leave an interpolation strip from the drag's start to the point (or position) released on."""
+        start, self._drag_from = self._drag_from, None
+        if start is None or self.projection is None:
+            return
+        xy = np.array([x, y])
+        target = self._snap(xy)
+        code_a, action, end_a = self.bank_item(start)
+        if target is not None:
+            code_b, _, end_b = self.bank_item(target)
+            self.state.selection = (start, target)
+            what = f"#{start} → #{target}"
+        else:
+            code_b = self._code_at(xy)[0]
+            end_b = self.bank.end_location(code_b[None], action)[0]
+            what = f"#{start} → ({x:.2f}, {y:.2f})"
+        self.interpolate(code_a, code_b, action, end_a, end_b, what)
+
+    def _snap(self, xy: np.ndarray) -> int | None:
+        """Bank index of the visible point drawn within a few pixels of map position ``xy``, else None."""
+        embedding = self.state.embedding
+        visible = np.flatnonzero(~np.isin(self.bank.actions, list(self.state.hidden_actions)))
+        if embedding is None or len(visible) == 0:
+            return None
+        nearest = int(visible[np.argmin(np.linalg.norm(embedding[visible] - xy, axis=1))])
+        to_px = self.window.latent_map.data_to_widget
+        a, b = to_px(embedding[nearest]), to_px(xy)
+        return nearest if np.hypot(a.x() - b.x(), a.y() - b.y()) <= 10.0 else None
+
+    def interpolate(
+        self,
+        code_a: np.ndarray,
+        code_b: np.ndarray,
+        action: int,
+        end_a: np.ndarray | None,
+        end_b: np.ndarray | None,
+        what: str,
+    ) -> None:
+        """Decode the strip of ``steps`` codes from ``code_a`` to ``code_b`` and show them."""
+        loaded, steps = self.loaded, self.window.steps_spin.value()
+
+        def job() -> tuple[Decoded, ...]:
+            samples = generate.interpolate(loaded, code_a, code_b, action, steps, end_a=end_a, end_b=end_b)
+            return tuple(
+                Decoded(s.motion, f"{what} step {k + 1}/{steps}", s.code, s.action, s.end, s.mode)
+                for k, s in enumerate(samples)
+            )
+
+        self.decoder.submit(job)
+
+    def lasso(self, polygon: object) -> None:
+        """Select the visible bank codes inside ``polygon`` (M, 2)."""
+        if self.state.model is None or self.state.embedding is None:
+            return
+        inside = points_in_polygon(self.state.embedding, np.asarray(polygon, dtype=np.float64))
+        inside &= ~np.isin(self.bank.actions, list(self.state.hidden_actions))
+        self.state.selection = tuple(int(i) for i in np.flatnonzero(inside))
+        self.window.show_status(
+            f"Lasso selected {len(self.state.selection)} codes (Selection menu: play, …)."
+        )
+
+    def clear_selection(self) -> None:
+        """Forget the selection, the samples on the map, the marker and the local mode."""
+        self.state.selection = ()
+        self.state.extra = None
+        self.state.marker = None
+        self._local_mode = None
+        self._draw_overlays()
+
+    def play_selection(self) -> None:
+        """Decode the selected codes (up to ``MAX_PLAYED``) and play them together."""
+        if self.state.selection:
+            self._decode_bank(
+                list(self.state.selection[:MAX_PLAYED]), with_real=len(self.state.selection) == 1
+            )
+
+    def _selection_summary(self) -> tuple[np.ndarray, int, float]:
+        """(centroid code, majority action, radius) of the selection."""
+        sel = np.asarray(self.state.selection, dtype=np.int64)
+        if len(sel) == 0:
+            raise ConfigError("select codes first (click a point or draw a lasso)")
+        bank = self.bank
+        codes = bank.codes[sel].astype(np.float64)
+        centre = codes.mean(axis=0)
+        action = int(np.bincount(bank.actions[sel]).argmax())
+        spread = float(np.linalg.norm(codes - centre, axis=1).mean())
+        if spread == 0.0:
+            same = bank.codes[bank.indices_of(action)]
+            spread = 0.25 * float(np.median(np.linalg.norm(same - same.mean(axis=0), axis=1)))
+        return centre.astype(np.float32), action, spread
+
+    def sample_variations(self) -> None:
+        """Decode variations around the selection (the engine's ``neighbours``) and put them on the map."""
+        summary = self._guard("Cannot sample variations", self._selection_summary)
+        if summary is None:
+            return
+        centre, action, radius = summary
+        loaded, seed = self.loaded, self._new_seed()
+        self._run_task(
+            "Sampling variations",
+            lambda _p, _c: generate.neighbours(loaded, centre, action, VARIATIONS, radius, seed),
+            lambda samples: self._samples_ready(samples, seed, "variation"),
+        )
+
+    def fit_local_mode(self) -> None:
+        """Fit one Gaussian to the selected codes, outline it on the map and sample from it."""
+        sel = np.asarray(self.state.selection, dtype=np.int64)
+        if len(sel) < 3:
+            self.report_error("Cannot fit a local mode", "select at least 3 codes with the lasso")
+            return
+        loaded, bank = self.loaded, self.bank
+        action = int(np.bincount(bank.actions[sel]).argmax())
+        codes = bank.codes[sel].astype(np.float64)
+        mean = codes.mean(axis=0)
+        cov = np.cov(codes, rowvar=False) + 1e-6 * np.eye(codes.shape[1])
+        local = ModeModel(
+            weights=np.ones(1),
+            means=mean[None],
+            covariances=cov[None],
+            labels=np.zeros(len(sel), dtype=np.int64),
+            silhouette={},
+            k_chosen=1,
+            conventional_mean=mean,
+            conventional_cov=cov,
+        )
+        self._local_mode = (local, sel)
+        self._draw_overlays()
+        seed = self._new_seed()
+
+        def job(_p: Progress, _c: Cancel) -> list[generate.Sample]:
+            codes, _ = local.sample(LOCAL_MODE_SAMPLES, np.random.default_rng(seed), strategy="mode", mode=0)
+            motions = generate.decode_batch(loaded, codes, action)
+            ends = bank.end_location(codes, action)
+            return [
+                generate.Sample(c.astype(np.float32), action, -1, e, m)
+                for c, e, m in zip(codes, ends, motions, strict=True)
+            ]
+
+        self._run_task("Sampling the local mode", job, lambda s: self._samples_ready(s, seed, "local mode"))
+
+    def sample(self, strategy: str, n: int, mode: int) -> None:
+        """Draw ``n`` samples of the focused action (mode panel's Sample buttons) and show them."""
+        if self.state.model is None:
+            return
+        loaded, action, seed = self.loaded, self.state.focus_action, self._new_seed()
+        strategy = PANEL_STRATEGIES.get(strategy, strategy)
+        weights = self._weights.get(action) if strategy == "weights" else None
+        chosen = None if mode < 0 else int(mode)
+
+        def job(_p: Progress, _c: Cancel) -> list[generate.Sample]:
+            return generate.sample(loaded, action, int(n), seed, strategy, chosen, weights)
+
+        self._run_task(
+            f"Sampling {n} × {loaded.action_names[action]}",
+            job,
+            lambda s: self._samples_ready(s, seed, strategy.replace("_", "-")),
+        )
+
+    def _samples_ready(self, samples: list[generate.Sample], seed: int, what: str) -> None:
+        if not samples:
+            return
+        codes = np.stack([s.code for s in samples]).astype(np.float32)
+        actions = np.array([s.action for s in samples], dtype=np.int64)
+        xy = self.projection.transform(codes) if self.projection is not None else np.zeros((len(codes), 2))
+        self.state.extra = ExtraPoints(codes, actions, xy)
+        names = self.loaded.action_names
+        self.state.shown = tuple(
+            Decoded(
+                s.motion,
+                f"{what} {k + 1}/{len(samples)} {names[s.action]}"
+                + (f" mode {s.mode}" if s.mode >= 0 else ""),
+                s.code,
+                s.action,
+                s.end,
+                s.mode if s.mode >= 0 else None,
+                seed,
+            )
+            for k, s in enumerate(samples)
+        )
+
+    def set_end(self, x: float, z: float) -> None:
+        """Re-decode the current code with its end location moved to floor point (x, z)."""
+        current = next((d for d in self.state.shown if d.code is not None), None)
+        if current is None:
+            return
+        self._decode_code(
+            current.code, current.action, f"{current.label} · end ({x:.2f}, {z:.2f})", np.array([x, z])
+        )
+
+    def follow_path(self, path: object) -> None:
+        """Ask the engine for the code of the focused action whose root path follows ``path`` (K, 2)."""
+        if self.state.model is None:
+            return
+        loaded, action = self.loaded, self.state.focus_action
+        path_xz = np.asarray(path, dtype=np.float64)
+
+        def job(progress: Progress, _c: Cancel) -> generate.PathResult:
+            progress("Optimising a code to follow the path", 0.0)
+            return generate.follow_path(loaded, path_xz, action)
+
+        def done(result: generate.PathResult) -> None:
+            label = f"follow path · {loaded.action_names[action]} · error {result.path_error_m:.3f} m"
+            item = Decoded(result.motion, label, result.code, action, result.end)
+            self.state.shown = (item,)
+            self.window.trajectory.set_generated(_root_xz(result.motion), result.path_error_m)
+
+        self._run_task("Following the path", job, done)
+
+    # -- showing motions -----------------------------------------------------------------------------
+
+    def _decoded(self, _request: int, items: tuple[Decoded, ...]) -> None:
+        self.state.shown = items
+
+    def _show_motions(self, shown: tuple[Decoded, ...]) -> None:
+        w = self.window
+        if not shown:
+            return
+        motions = [d.motion for d in shown]
+        sequence = self.state.layout == "sequence" and len(motions) > 1
+        played = [_concatenate(motions)] if sequence else motions
+        self._played = played
+        w.viewport.set_skeletons(played[0].skeleton.parents, len(played))
+        w.viewport.set_layout("overlay" if self.state.layout == "overlay" else "side_by_side", 1.0)
+        first = played[0]
+        w.viewport.set_trajectory(first.joints[:, first.skeleton.root])
+        w.viewport.set_end_marker(None if shown[0].end is None else np.asarray(shown[0].end, np.float64))
+        w.viewport.set_ghosts(first.joints[:: max(1, first.n_frames // 6)])
+        w.trajectory.set_generated(_root_xz(first), None)
+        length = max(m.n_frames for m in played)
+        w.timeline.set_length(length, first.fps)
+        self.state.frame = 0
+        self._set_frame(0)
+        w.timeline.play()
+        head = shown[0]
+        more = f" (+{len(shown) - 1} more)" if len(shown) > 1 else ""
+        mode = "" if head.mode is None else f" · mode {head.mode}"
+        end = "" if head.end is None else " · end ({:.2f}, {:.2f}, {:.2f}) m".format(*np.ravel(head.end))
+        w.show_status(
+            f"Playing {head.label}{more} · {head.motion.action}{mode}{end} · "
+            f"{first.n_frames} frames @ {first.fps:g} fps"
+        )
+        self.shownChanged.emit()
+
+    def _set_frame(self, frame: int) -> None:
+        played = self._played
+        if not played:
+            return
+        poses = np.stack([m.joints[min(frame, m.n_frames - 1)] for m in played])
+        self.window.viewport.set_poses(poses)
+
+    # -- export --------------------------------------------------------------------------------------
+
+    def export_shown(self, path: str | Path) -> list[Path]:
+        """Write the motions shown in the viewport to ``path`` (BVH or NPZ; numbered when several)."""
+        return self._guard(
+            "Export failed", lambda: export.export_motions(self.state.shown, path, str(self.loaded.path))
+        )
+
+    def export_selection(self, path: str | Path) -> list[Path] | None:
+        """Decode every selected bank code and write them to ``path`` (numbered files)."""
+
+        def run() -> list[Path]:
+            loaded, bank = self.loaded, self.bank
+            if not self.state.selection:
+                raise ConfigError("nothing selected to export")
+            labels = mode_labels(bank)
+            items = []
+            for i in self.state.selection:
+                code, action, end = self.bank_item(i)
+                mode = None if labels[i] < 0 else int(labels[i])
+                motion = _decode_one(loaded, code, action, end, mode)
+                items.append(Decoded(motion, f"#{i} {bank.sources[i]}", code, action, end, mode, None, i))
+            return export.export_motions(items, path, str(loaded.path))
+
+        return self._guard("Export failed", run)
+
+    def export_map(self, path: str | Path) -> Path | None:
+        """Save the latent map as a PNG (projection, colouring and model in its text chunks)."""
+        meta = {
+            "model": str(self.state.model.path) if self.state.model else None,
+            "projection": self.state.projection,
+            "color_by": self.state.color_by,
+            "selection": list(self.state.selection),
+        }
+        return self._guard(
+            "Export failed", lambda: export.save_widget_png(self.window.latent_map, path, meta)
+        )
+
+    def export_timelapse(self, path: str | Path) -> Path | None:
+        """Save a time-lapse PNG strip of the first motion shown."""
+
+        def run() -> Path:
+            if not self.state.shown:
+                raise ConfigError("no motion is shown")
+            return export.save_timelapse(self.state.shown[0], path, str(self.loaded.path))
+
+        return self._guard("Export failed", run)
+
+    def _ask_export(self, what: str) -> None:
+        filters = {
+            "motion": "BVH (*.bvh);;NPZ (*.npz)",
+            "selection": "BVH (*.bvh);;NPZ (*.npz)",
+            "map": "PNG (*.png)",
+            "timelapse": "PNG (*.png)",
+        }
+        path, chosen = QFileDialog.getSaveFileName(self.window, f"Export {what}", "", filters[what])
+        if not path:
+            return
+        if not Path(path).suffix:
+            path += "." + chosen.split("*.")[-1].rstrip(")")
+        run = {
+            "motion": self.export_shown,
+            "selection": self.export_selection,
+            "map": self.export_map,
+            "timelapse": self.export_timelapse,
+        }[what]
+        if run(path):
+            self.window.show_status(f"Exported {what} to {path}")
+
+    def _ask_model(self) -> None:
+        path = QFileDialog.getExistingDirectory(self.window, "Open model folder")
+        if path:
+            self.open_model(path)
+
+    def _ask_data(self) -> None:
+        path = QFileDialog.getExistingDirectory(self.window, "Open dataset folder")
+        if path:
+            self.open_data(path)
+
+    # -- lifetime ------------------------------------------------------------------------------------
+
+    def shutdown(self) -> None:
+        """Stop the workers (cancel running tasks, drop pending decodes) and join their threads."""
+        self.decoder.shutdown()
+        self.tasks.shutdown()
+
+
+def _decode_one(
+    loaded: LoadedModel, code: np.ndarray, action: int, end: np.ndarray | None, mode: int | None
+) -> Motion:
+    """``generate.decode`` with the end location passed as one row (a (3,) end gets broadcast read-only)."""
+    rows = None if end is None else np.array(end, dtype=np.float32).reshape(1, -1)
+    return generate.decode(loaded, np.array(code, dtype=np.float32), action, rows, mode=mode)
+
+
+def _root_xz(motion: Motion) -> np.ndarray:
+    """(T, 2) floor path (x, z) of the motion's root."""
+    return motion.joints[:, motion.skeleton.root][:, [0, 2]].astype(np.float64)
+
+
+def _as_shown(clip: Motion, fps: float) -> Motion:
+    """A real clip at the model's frame rate with its first root position moved to the floor origin."""
+    shown = clip.resample(fps) if abs(clip.fps - fps) > 1e-6 else clip
+    start = shown.joints[0, shown.skeleton.root].copy()
+    start[1] = 0.0
+    return shown.with_joints(shown.joints - start)
+
+
+def _concatenate(motions: Sequence[Motion]) -> Motion:
+    """The motions one after the other (for playing a strip in sequence)."""
+    joints = np.concatenate([m.joints for m in motions])
+    return motions[0].with_joints(joints, meta={"sequence": [m.meta for m in motions]})

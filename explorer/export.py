@@ -1,0 +1,165 @@
+"""Exports: motions (BVH / NPZ through the engine writers), map PNGs and time-lapse PNG strips.
+
+Every export carries its provenance (model, code, action, mode, end location, seed): in ``Motion.meta``
+for motion files, as PNG text chunks for images. Files are written atomically; when one file of a
+multi-file export fails, the files already written by that export are removed.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import logging
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from PySide6.QtCore import QBuffer, QByteArray, QIODevice, QPointF, Qt
+from PySide6.QtGui import QColor, QFont, QImage, QPainter, QPen
+from PySide6.QtWidgets import QWidget
+
+from engine.errors import ConfigError
+from engine.fileio import atomic_write_bytes
+from engine.motion.motion import Motion
+from explorer.state import Decoded
+
+log = logging.getLogger(__name__)
+
+MOTION_SUFFIXES = (".bvh", ".npz")
+
+
+def motion_with_provenance(item: Decoded, model_path: str) -> Motion:
+    """A copy of ``item.motion`` whose meta records model, code, action, mode, end and seed."""
+    meta = dict(item.motion.meta)
+    meta.update(item.metadata(model_path))
+    return Motion(
+        joints=item.motion.joints,
+        fps=item.motion.fps,
+        skeleton=item.motion.skeleton,
+        local_rotations=item.motion.local_rotations,
+        root_translation=item.motion.root_translation,
+        action=item.motion.action,
+        meta=meta,
+    )
+
+
+def numbered_paths(path: Path, n: int) -> list[Path]:
+    """``path`` itself for one item, else ``stem_000.ext``, ``stem_001.ext``, ... beside it."""
+    if n == 1:
+        return [path]
+    return [path.with_name(f"{path.stem}_{i:03d}{path.suffix}") for i in range(n)]
+
+
+def export_motions(items: Sequence[Decoded], path: str | Path, model_path: str) -> list[Path]:
+    """Write each motion to ``path`` (numbered when several) as BVH or NPZ; all or nothing."""
+    path = Path(path)
+    if path.suffix.lower() not in MOTION_SUFFIXES:
+        raise ConfigError(f"{path}: export a motion as .bvh or .npz, not {path.suffix or 'no extension'!r}")
+    if not items:
+        raise ConfigError("nothing to export: no motion is shown or selected")
+    targets = numbered_paths(path, len(items))
+    written: list[Path] = []
+    try:
+        for item, target in zip(items, targets, strict=True):
+            motion_with_provenance(item, model_path).save(target)
+            written.append(target)
+    except BaseException:
+        for done in written:
+            with contextlib.suppress(OSError):
+                done.unlink()
+        raise
+    log.info("exported %d motion(s) to %s", len(written), path)
+    return written
+
+
+def png_bytes(image: QImage, meta: dict[str, Any]) -> bytes:
+    """``image`` encoded as PNG with ``meta`` stored as text chunks (JSON values)."""
+    image = image.copy()
+    for key, value in meta.items():
+        image.setText(str(key), value if isinstance(value, str) else json.dumps(value))
+    data = QByteArray()
+    buffer = QBuffer(data)
+    buffer.open(QIODevice.OpenModeFlag.WriteOnly)
+    if not image.save(buffer, "PNG"):
+        raise OSError("PNG encoding failed")
+    buffer.close()
+    return bytes(data.data())
+
+
+def save_png(image: QImage, path: str | Path, meta: dict[str, Any]) -> Path:
+    """Write ``image`` to ``path`` as a PNG with ``meta`` text chunks, atomically."""
+    path = Path(path)
+    if path.suffix.lower() != ".png":
+        raise ConfigError(f"{path}: images are exported as .png")
+    atomic_write_bytes(path, png_bytes(image, meta))
+    return path
+
+
+def save_widget_png(widget: QWidget, path: str | Path, meta: dict[str, Any]) -> Path:
+    """Render ``widget`` (e.g. the latent map) to a PNG at ``path``."""
+    return save_png(widget.grab().toImage(), path, meta)
+
+
+def timelapse_frames(n_frames: int, count: int) -> np.ndarray:
+    """(min(count, n_frames),) evenly spaced frame indices, first and last included."""
+    count = max(1, min(int(count), int(n_frames)))
+    return np.unique(np.round(np.linspace(0, n_frames - 1, count)).astype(int))
+
+
+def timelapse_image(motion: Motion, count: int = 8, panel: int = 180, title: str = "") -> QImage:
+    """A strip of ``count`` poses of ``motion`` seen from the side (x right, y up), one panel each."""
+    frames = timelapse_frames(motion.n_frames, count)
+    joints = motion.joints[frames].astype(np.float64)
+    parents = motion.skeleton.parents
+    # Centre each pose on its own root so the strip reads as poses; travel is written under each panel.
+    root = motion.skeleton.root
+    centred = joints.copy()
+    centred[:, :, 0] -= joints[:, root : root + 1, 0]
+    floor = float(min(0.0, motion.joints[:, :, 1].min()))
+    height = max(float(motion.joints[:, :, 1].max()) - floor, 1e-3)
+    half_width = max(float(np.abs(centred[:, :, 0]).max()), 0.25 * height)
+    header = 28 if title else 0
+    margin = 14
+    scale = (panel - 2 * margin - 18) / max(height, 2 * half_width)
+    image = QImage(panel * len(frames), panel + header, QImage.Format.Format_RGB32)
+    image.fill(QColor("#1e1f22"))
+    painter = QPainter(image)
+    painter.setRenderHint(QPainter.RenderHint.Antialiasing)
+    painter.setFont(QFont("Sans", 9))
+    if title:
+        painter.setPen(QColor("#d0d0d0"))
+        painter.drawText(8, 0, image.width() - 16, header, Qt.AlignmentFlag.AlignVCenter, title)
+    floor_y = header + panel - margin - 18
+    for k, (frame, pose) in enumerate(zip(frames, centred, strict=True)):
+        cx = k * panel + panel / 2
+
+        def to_px(p: np.ndarray, cx: float = cx) -> QPointF:
+            return QPointF(cx + p[0] * scale, floor_y - (p[1] - floor) * scale)
+
+        painter.setPen(QPen(QColor("#5a5d63"), 1))
+        painter.drawLine(QPointF(k * panel + 6, floor_y), QPointF((k + 1) * panel - 6, floor_y))
+        painter.setPen(QPen(QColor("#4e79a7"), 2.5))
+        for j, p in enumerate(parents):
+            if p >= 0:
+                painter.drawLine(to_px(pose[p]), to_px(pose[j]))
+        painter.setPen(QPen(QColor("#f28e2b"), 4))
+        for j in range(len(parents)):
+            painter.drawPoint(to_px(pose[j]))
+        painter.setPen(QColor("#d0d0d0"))
+        painter.drawText(
+            int(k * panel),
+            int(floor_y + 2),
+            panel,
+            16,
+            Qt.AlignmentFlag.AlignCenter,
+            f"t={frame / motion.fps:.2f}s  x={joints[k, root, 0]:+.2f}m",
+        )
+    painter.end()
+    return image
+
+
+def save_timelapse(item: Decoded, path: str | Path, model_path: str, count: int = 8) -> Path:
+    """Write a time-lapse PNG strip of ``item``'s motion with its provenance as text chunks."""
+    title = f"{item.label}  ·  {item.motion.n_frames} frames @ {item.motion.fps:g} fps"
+    return save_png(timelapse_image(item.motion, count, title=title), path, item.metadata(model_path))

@@ -1,0 +1,226 @@
+"""The main window: the latent map in the centre, dockable panels around it, menus, toolbar, status bar.
+
+The window assembles views and exposes their controls; it holds no state and calls no engine code
+(the controller connects both sides).
+"""
+
+from __future__ import annotations
+
+from PySide6.QtCore import QByteArray, QSettings, Qt
+from PySide6.QtGui import QCloseEvent, QKeySequence
+from PySide6.QtWidgets import (
+    QComboBox,
+    QDockWidget,
+    QLabel,
+    QMainWindow,
+    QMessageBox,
+    QProgressBar,
+    QSpinBox,
+    QToolBar,
+    QToolButton,
+    QWidget,
+)
+
+from explorer.state import COLOR_BY, PROJECTIONS
+from widgets.latent_map import LatentMap
+from widgets.mode_panel import ModePanel
+from widgets.timeline import Timeline
+from widgets.trajectory_canvas import TrajectoryCanvas
+from widgets.viewport import SkeletonViewport
+
+SETTINGS_GEOMETRY = "window/geometry"
+SETTINGS_STATE = "window/state"
+_LAYOUT_VERSION = 1
+PROJECTION_LABELS = {"pca": "PCA", "tsne": "t-SNE", "umap": "UMAP"}
+
+
+class MainWindow(QMainWindow):
+    """ODMO Explorer's window; its dock layout is saved to and restored from ``settings``."""
+
+    def __init__(self, settings: QSettings, parent: QWidget | None = None) -> None:
+        super().__init__(parent)
+        self.settings = settings
+        self.setWindowTitle("ODMO Explorer")
+        self.setObjectName("OdmoExplorer")
+        self.setDockNestingEnabled(True)
+        self.resize(1500, 900)
+
+        self.latent_map = LatentMap()
+        self.viewport = SkeletonViewport()
+        self.timeline = Timeline()
+        self.mode_panel = ModePanel()
+        self.trajectory = TrajectoryCanvas()
+        self.setCentralWidget(self.latent_map)
+
+        self.viewport_dock = self._dock("Motion (3D)", "dock_viewport", self.viewport, Qt.RightDockWidgetArea)
+        self.timeline_dock = self._dock("Timeline", "dock_timeline", self.timeline, Qt.BottomDockWidgetArea)
+        self.mode_dock = self._dock("Modes", "dock_modes", self.mode_panel, Qt.LeftDockWidgetArea)
+        self.trajectory_dock = self._dock(
+            "Trajectory (top view)", "dock_trajectory", self.trajectory, Qt.LeftDockWidgetArea
+        )
+        self.splitDockWidget(self.mode_dock, self.trajectory_dock, Qt.Vertical)
+        self.resizeDocks([self.viewport_dock], [560], Qt.Horizontal)
+        self.resizeDocks([self.mode_dock], [330], Qt.Horizontal)
+
+        self._build_toolbar()
+        self._build_menus()
+        self._build_status_bar()
+        self._default_state = self.saveState(_LAYOUT_VERSION)
+        self.restore_layout()
+
+    # -- construction ---------------------------------------------------------------------------------
+
+    def _dock(self, title: str, name: str, widget: QWidget, area: Qt.DockWidgetArea) -> QDockWidget:
+        dock = QDockWidget(title, self)
+        dock.setObjectName(name)
+        dock.setWidget(widget)
+        dock.setFeatures(
+            QDockWidget.DockWidgetMovable | QDockWidget.DockWidgetFloatable | QDockWidget.DockWidgetClosable
+        )
+        self.addDockWidget(area, dock)
+        return dock
+
+    def _build_toolbar(self) -> None:
+        bar = QToolBar("Map", self)
+        bar.setObjectName("toolbar_map")
+        self.addToolBar(Qt.TopToolBarArea, bar)
+
+        bar.addWidget(QLabel(" Projection "))
+        self.projection_combo = QComboBox()
+        for name in PROJECTIONS:
+            self.projection_combo.addItem(PROJECTION_LABELS[name], name)
+        self.projection_combo.setToolTip("Map projection: precomputed ones switch instantly")
+        bar.addWidget(self.projection_combo)
+
+        bar.addWidget(QLabel("  Colour by "))
+        self.color_combo = QComboBox()
+        for name in COLOR_BY:
+            self.color_combo.addItem(name, name)
+        bar.addWidget(self.color_combo)
+
+        bar.addSeparator()
+        bar.addWidget(QLabel(" Action "))
+        self.action_combo = QComboBox()
+        self.action_combo.setToolTip("Action for the mode panel, sampling and empty-space decoding")
+        bar.addWidget(self.action_combo)
+
+        bar.addSeparator()
+        bar.addWidget(QLabel(" Strip steps "))
+        self.steps_spin = QSpinBox()
+        self.steps_spin.setRange(2, 16)
+        self.steps_spin.setValue(5)
+        self.steps_spin.setToolTip("Number of motions in the interpolation strip a drag leaves behind")
+        bar.addWidget(self.steps_spin)
+        self.layout_combo = QComboBox()
+        self.layout_combo.addItem("side by side", "side_by_side")
+        self.layout_combo.addItem("overlaid", "overlay")
+        self.layout_combo.addItem("in sequence", "sequence")
+        self.layout_combo.setToolTip("How several motions are shown")
+        bar.addWidget(self.layout_combo)
+
+    def _build_menus(self) -> None:
+        file_menu = self.menuBar().addMenu("&File")
+        self.open_model_action = file_menu.addAction("Open &model folder…")
+        self.open_model_action.setShortcut(QKeySequence.Open)
+        self.open_data_action = file_menu.addAction("Open &dataset folder…")
+        file_menu.addSeparator()
+        self.export_motion_action = file_menu.addAction("&Export shown motion(s) (BVH / NPZ)…")
+        self.export_motion_action.setShortcut(QKeySequence("Ctrl+E"))
+        self.export_timelapse_action = file_menu.addAction("Export &time-lapse strip (PNG)…")
+        self.export_map_action = file_menu.addAction("Export &map (PNG)…")
+        file_menu.addSeparator()
+        self.quit_action = file_menu.addAction("&Quit")
+        self.quit_action.setShortcut(QKeySequence.Quit)
+        self.quit_action.triggered.connect(self.close)
+
+        sel = self.menuBar().addMenu("&Selection")
+        self.play_selection_action = sel.addAction("&Play selection together")
+        self.variations_action = sel.addAction("Sample &variations around selection")
+        self.fit_mode_action = sel.addAction("&Fit a local mode to selection")
+        self.export_selection_action = sel.addAction("E&xport selection (BVH / NPZ)…")
+        sel.addSeparator()
+        self.clear_selection_action = sel.addAction("&Clear selection and samples")
+        self.clear_selection_action.setShortcut(QKeySequence(Qt.Key_Escape))
+
+        view = self.menuBar().addMenu("&View")
+        for dock in (self.viewport_dock, self.timeline_dock, self.mode_dock, self.trajectory_dock):
+            view.addAction(dock.toggleViewAction())
+        view.addSeparator()
+        self.reset_camera_action = view.addAction("Reset &camera")
+        self.reset_layout_action = view.addAction("&Reset panel layout")
+        self.reset_layout_action.triggered.connect(self.reset_layout)
+
+    def _build_status_bar(self) -> None:
+        status = self.statusBar()
+        self.status_label = QLabel("No model loaded.")
+        self.status_label.setTextInteractionFlags(Qt.TextSelectableByMouse)
+        status.addWidget(self.status_label, 1)
+        self.progress_bar = QProgressBar()
+        self.progress_bar.setMaximumWidth(220)
+        self.progress_bar.setRange(0, 1000)
+        self.progress_bar.setTextVisible(True)
+        self.progress_bar.hide()
+        status.addPermanentWidget(self.progress_bar)
+        self.cancel_button = QToolButton()
+        self.cancel_button.setText("Cancel")
+        self.cancel_button.hide()
+        status.addPermanentWidget(self.cancel_button)
+
+    # -- feedback ------------------------------------------------------------------------------------
+
+    def show_status(self, text: str) -> None:
+        """Show ``text`` (what was decoded, what is hovered) in the status bar."""
+        self.status_label.setText(text)
+
+    def show_progress(self, text: str, fraction: float | None) -> None:
+        """Show a running task's progress (``fraction`` None: indeterminate)."""
+        self.progress_bar.show()
+        self.cancel_button.show()
+        if fraction is None:
+            self.progress_bar.setRange(0, 0)
+        else:
+            self.progress_bar.setRange(0, 1000)
+            self.progress_bar.setValue(int(max(0.0, min(1.0, fraction)) * 1000))
+        self.progress_bar.setFormat(f"{text} %p%")
+        self.progress_bar.setToolTip(text)
+
+    def hide_progress(self) -> None:
+        """Hide the progress bar and the Cancel button."""
+        self.progress_bar.hide()
+        self.cancel_button.hide()
+
+    def show_error(self, title: str, text: str) -> None:
+        """Tell the user that something failed (non-blocking message box); the app keeps running."""
+        self.show_status(f"Error: {text}")
+        box = QMessageBox(QMessageBox.Warning, title, text, QMessageBox.Ok, self)
+        box.setAttribute(Qt.WA_DeleteOnClose)
+        box.setObjectName("error_box")
+        box.open()
+
+    # -- layout persistence --------------------------------------------------------------------------
+
+    def restore_layout(self) -> None:
+        """Restore geometry and dock layout saved by a previous run, if any."""
+        geometry = self.settings.value(SETTINGS_GEOMETRY)
+        state = self.settings.value(SETTINGS_STATE)
+        if isinstance(geometry, QByteArray):
+            self.restoreGeometry(geometry)
+        if isinstance(state, QByteArray):
+            self.restoreState(state, _LAYOUT_VERSION)
+
+    def save_layout(self) -> None:
+        """Remember geometry and dock layout for the next run."""
+        self.settings.setValue(SETTINGS_GEOMETRY, self.saveGeometry())
+        self.settings.setValue(SETTINGS_STATE, self.saveState(_LAYOUT_VERSION))
+        self.settings.sync()
+
+    def reset_layout(self) -> None:
+        """Put every panel back where it starts."""
+        self.restoreState(self._default_state, _LAYOUT_VERSION)
+        for dock in (self.viewport_dock, self.timeline_dock, self.mode_dock, self.trajectory_dock):
+            dock.show()
+
+    def closeEvent(self, event: QCloseEvent) -> None:
+        """Save the layout, then close."""
+        self.save_layout()
+        super().closeEvent(event)

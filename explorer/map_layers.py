@@ -1,0 +1,99 @@
+"""What the latent map draws for a bank: point colours, tooltips, mode overlays (pure functions, no Qt)."""
+
+from __future__ import annotations
+
+import numpy as np
+from pyqtgraph import colormap
+
+from engine.latent.bank import LatentBank
+from engine.latent.geometry import convex_hull, gaussian_ellipse, project_gaussian
+from engine.latent.projection import PCAProjection, Projection
+from widgets._colors import palette_rgb
+
+
+def category_colors(n: int) -> np.ndarray:
+    """(n, 4) float RGBA categorical colours (the widgets' palette)."""
+    rgb = palette_rgb(max(n, 1))[:n].astype(np.float64) / 255.0
+    return np.concatenate([rgb, np.ones((n, 1))], axis=1)
+
+
+def mode_labels(bank: LatentBank) -> np.ndarray:
+    """(N,) mode index of every bank code within its action (-1 where the action has no modes)."""
+    labels = np.full(len(bank.codes), -1, dtype=np.int64)
+    for action, modes in bank.modes.items():
+        labels[bank.indices_of(action)] = np.asarray(modes.labels, dtype=np.int64)
+    return labels
+
+
+def motion_energy(joints: np.ndarray, fps: float) -> np.ndarray:
+    """(B,) mean joint speed in m/s of motions ``joints`` (B, T, J, 3)."""
+    if joints.shape[1] < 2:
+        return np.zeros(len(joints))
+    speed = np.linalg.norm(np.diff(joints, axis=1), axis=-1) * fps
+    return speed.mean(axis=(1, 2))
+
+
+def scalar_colors(values: np.ndarray) -> np.ndarray:
+    """(N, 4) float RGBA viridis colours of ``values`` scaled between their 2nd and 98th percentiles."""
+    values = np.asarray(values, dtype=np.float64)
+    lo, hi = np.percentile(values, [2, 98]) if len(values) else (0.0, 1.0)
+    scaled = np.clip((values - lo) / max(hi - lo, 1e-12), 0.0, 1.0)
+    return np.asarray(colormap.get("viridis").map(scaled, mode="float"), dtype=np.float64)
+
+
+def point_colors(bank: LatentBank, color_by: str, energy: np.ndarray | None) -> np.ndarray:
+    """(N, 4) float RGBA colour of each bank code by action, mode or motion energy (grey until known)."""
+    if color_by == "mode":
+        labels = mode_labels(bank)
+        colors = category_colors(max(int(labels.max()) + 1, 1))[np.maximum(labels, 0)]
+        colors[labels < 0] = (0.5, 0.5, 0.5, 1.0)
+        return colors
+    if color_by == "motion energy":
+        if energy is None:
+            return np.tile((0.5, 0.5, 0.5, 1.0), (len(bank.codes), 1))
+        return scalar_colors(energy)
+    return category_colors(len(bank.action_names))[np.asarray(bank.actions, dtype=np.int64)]
+
+
+def tooltips(bank: LatentBank) -> list[str]:
+    """One hover text per bank code: clip name, action and style when known."""
+    texts = []
+    for i, source in enumerate(bank.sources):
+        style = bank.meta[i].get("style") if i < len(bank.meta) else None
+        extra = f" · {style}" if style else ""
+        texts.append(f"{source}\n{bank.action_names[int(bank.actions[i])]}{extra} · #{i}")
+    return texts
+
+
+def mode_overlays(
+    bank: LatentBank, action: int, projection: Projection, embedding: np.ndarray
+) -> tuple[list[np.ndarray], np.ndarray]:
+    """Outlines of ``action``'s modes on the map and their colours (N_modes, 4).
+
+    Under PCA each mode's Gaussian is projected exactly and drawn as its half-peak ellipse; under the
+    non-linear maps, the convex hull of the mode's member codes is drawn.
+    """
+    modes = bank.modes.get(action)
+    if modes is None:
+        return [], np.zeros((0, 4))
+    curves: list[np.ndarray] = []
+    if isinstance(projection, PCAProjection):
+        for mean, cov in zip(modes.means, modes.covariances, strict=True):
+            mean2, cov2 = project_gaussian(mean, cov, projection.components_, projection.mean_)
+            curves.append(gaussian_ellipse(mean2, cov2, level=0.5))
+    else:
+        members = bank.indices_of(action)
+        labels = np.asarray(modes.labels)
+        for k in range(modes.n_modes):
+            curves.append(convex_hull(embedding[members[labels == k]]))
+    return curves, category_colors(modes.n_modes)
+
+
+def gaussian_outline(
+    mean: np.ndarray, cov: np.ndarray, projection: Projection, members_xy: np.ndarray
+) -> np.ndarray:
+    """Outline of one fitted Gaussian: its exact half-peak ellipse under PCA, else its members' hull."""
+    if isinstance(projection, PCAProjection):
+        mean2, cov2 = project_gaussian(mean, cov, projection.components_, projection.mean_)
+        return gaussian_ellipse(mean2, cov2, level=0.5)
+    return convex_hull(members_xy)

@@ -1,0 +1,112 @@
+"""Evented application state: every view subscribes to it, only the controller writes it."""
+
+from __future__ import annotations
+
+import operator
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from psygnal import evented
+
+from engine.modelio import LoadedModel
+from engine.motion.motion import Motion
+
+PROJECTIONS = ("pca", "tsne", "umap")
+COLOR_BY = ("action", "mode", "motion energy")
+LAYOUTS = ("side_by_side", "overlay")
+
+
+@dataclass(frozen=True, eq=False)
+class Decoded:
+    """One motion on screen and what produced it.
+
+    Parameters
+    ----------
+    motion : the decoded (or real) motion.
+    label : short text for the status bar and file names.
+    code : (D,) latent code, or None for a real clip.
+    action : action index.
+    end : (3,) end location used, or None.
+    mode : mode index within the action, or None when unknown.
+    seed : seed of the random draw that produced the code, or None.
+    bank_index : index of the bank code it came from, or None.
+    """
+
+    motion: Motion
+    label: str
+    code: np.ndarray | None = None
+    action: int = 0
+    end: np.ndarray | None = None
+    mode: int | None = None
+    seed: int | None = None
+    bank_index: int | None = None
+
+    def metadata(self, model_path: str) -> dict[str, Any]:
+        """JSON-ready provenance: model, code, action, mode, end location, seed."""
+        return {
+            "model": model_path,
+            "label": self.label,
+            "action": self.motion.action,
+            "action_index": int(self.action),
+            "code": None if self.code is None else [float(v) for v in np.ravel(self.code)],
+            "mode": self.mode,
+            "end": None if self.end is None else [float(v) for v in np.ravel(self.end)],
+            "seed": self.seed,
+            "bank_index": self.bank_index,
+        }
+
+
+@dataclass(frozen=True, eq=False)
+class ExtraPoints:
+    """Codes shown on the map besides the bank (samples, variations), with their map positions.
+
+    Parameters
+    ----------
+    codes : (M, D) latent codes.
+    actions : (M,) action indices.
+    xy : (M, 2) positions under the current projection.
+    """
+
+    codes: np.ndarray
+    actions: np.ndarray
+    xy: np.ndarray
+
+
+@evented(equality_operators={"model": operator.is_, "embedding": operator.is_, "marker": operator.is_})
+@dataclass
+class AppState:
+    """What the explorer shows; each field emits ``state.events.<field>`` when it changes.
+
+    Parameters
+    ----------
+    model : the loaded model (with its latent bank), or None.
+    data_dir : dataset folder whose real clips play beside reconstructions, or None.
+    projection : name of the map's projection ("pca", "tsne", "umap").
+    embedding : (N, 2) map positions of the bank codes under ``projection``, or None.
+    color_by : what colours the points (see ``COLOR_BY``).
+    hidden_actions : action indices hidden on the map.
+    focus_action : the action the mode panel and the sample buttons work on.
+    selection : selected bank indices.
+    marker : (2,) map position of the last decoded empty-space point, or None.
+    extra : codes shown on the map besides the bank, or None.
+    shown : the motions in the viewport, played together.
+    layout : "side_by_side" or "overlay".
+    frame : current frame of the timeline.
+    busy : text of the long task in progress ("" when idle).
+    """
+
+    model: LoadedModel | None = None
+    data_dir: str | None = None
+    projection: str = "pca"
+    embedding: np.ndarray | None = None
+    color_by: str = "action"
+    hidden_actions: frozenset[int] = frozenset()
+    focus_action: int = 0
+    selection: tuple[int, ...] = ()
+    marker: np.ndarray | None = None
+    extra: ExtraPoints | None = None
+    shown: tuple[Decoded, ...] = field(default_factory=tuple)
+    layout: str = "side_by_side"
+    frame: int = 0
+    busy: str = ""
