@@ -1,0 +1,93 @@
+"""OdmoConfig: every hyper-parameter of the ODMO model and its training, saved in model.json."""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+from typing import Any
+
+from engine.errors import ConfigError, ModelFormatError
+
+
+@dataclass
+class OdmoConfig:
+    """Sizes, loss weights and training schedule of one ODMO model.
+
+    The defaults follow the paper (D = 20, T = 60, LSTM 64 / 128, every loss weight 1, α = 5,
+    σ² = 0.05 as a variance, Adam 1e-3, epochs of 2,048 class-balanced windows, teacher forcing
+    decaying linearly 1 → 0.3) except the batch (128 windows, the reference uses 512) and the number of
+    epochs, which are sized for a CPU.
+    """
+
+    n_actions: int
+    n_joints: int
+    window: int = 60
+    fps: float = 20.0
+    latent_dim: int = 20
+    enc_hidden: int = 64
+    enc_fc: int = 256
+    traj_hidden: int = 128
+    motion_hidden: int = 128
+    use_end_location: bool = True
+    alpha: float = 5.0
+    prior_sigma2: float = 0.05
+    w_recon: float = 1.0
+    w_traj: float = 1.0
+    w_consistency: float = 1.0
+    w_contrastive: float = 1.0
+    w_prior: float = 1.0
+    traj_y_weight: float = 1.0
+    lr: float = 1e-3
+    batch_size: int = 128
+    epoch_size: int = 2048
+    epochs: int = 300
+    tf_start: float = 1.0
+    tf_end: float = 0.3
+    tf_decay_epochs: int = 200
+    grad_clip: float = 1.0
+    arch: str = "odmo"
+
+    def __post_init__(self) -> None:
+        positive = ("n_actions", "n_joints", "window", "fps", "latent_dim", "enc_hidden", "enc_fc")
+        positive += ("traj_hidden", "motion_hidden", "prior_sigma2", "lr", "batch_size", "epoch_size")
+        for name in positive:
+            if not getattr(self, name) > 0:
+                raise ConfigError(f"{name} must be positive, got {getattr(self, name)!r}")
+        if self.window < 2:
+            raise ConfigError(f"window must be at least 2 frames, got {self.window}")
+        if self.batch_size < 2:
+            raise ConfigError("batch_size must be at least 2 (windows come in contrastive pairs)")
+        for name in ("w_recon", "w_traj", "w_consistency", "w_contrastive", "w_prior", "traj_y_weight"):
+            if getattr(self, name) < 0:
+                raise ConfigError(f"{name} must be >= 0, got {getattr(self, name)!r}")
+        if self.epochs < 0 or self.tf_decay_epochs < 0:
+            raise ConfigError("epochs and tf_decay_epochs must be >= 0")
+        if not (0.0 <= self.tf_end <= 1.0 and 0.0 <= self.tf_start <= 1.0):
+            raise ConfigError("teacher-forcing rates must lie in [0, 1]")
+        if self.arch != "odmo":
+            raise ConfigError(f"unknown architecture {self.arch!r} (expected 'odmo')")
+
+    def teacher_forcing(self, epoch: int) -> float:
+        """Teacher-forcing rate of ``epoch`` (0-based): linear from tf_start to tf_end, then constant."""
+        if self.tf_decay_epochs == 0:
+            return self.tf_end
+        frac = min(epoch / self.tf_decay_epochs, 1.0)
+        return self.tf_start + (self.tf_end - self.tf_start) * frac
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain JSON-serialisable dictionary of every field."""
+        return dataclasses.asdict(self)
+
+    @classmethod
+    def from_dict(cls, d: dict[str, Any]) -> OdmoConfig:
+        """Config from ``to_dict`` output; unknown or missing required keys raise ModelFormatError."""
+        if not isinstance(d, dict):
+            raise ModelFormatError(f"model config must be a JSON object, got {type(d).__name__}")
+        names = {f.name for f in dataclasses.fields(cls)}
+        unknown = sorted(set(d) - names)
+        if unknown:
+            raise ModelFormatError(f"unknown model config keys: {', '.join(unknown)}")
+        try:
+            return cls(**d)
+        except (TypeError, ConfigError) as exc:
+            raise ModelFormatError(f"invalid model config: {exc}") from exc

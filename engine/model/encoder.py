@@ -1,0 +1,51 @@
+"""LMP encoder: local movement profile (joints minus root) → code mean and log-variance."""
+
+from __future__ import annotations
+
+import torch
+import torch.nn.functional as F  # noqa: N812
+from torch import Tensor, nn
+
+
+class SampleSafeBatchNorm1d(nn.BatchNorm1d):
+    """BatchNorm1d that uses its running statistics for a batch of one (plain BatchNorm raises)."""
+
+    def forward(self, x: Tensor) -> Tensor:
+        """Normalise ``x`` (B, F)."""
+        if self.training and x.shape[0] == 1:
+            return F.batch_norm(
+                x, self.running_mean, self.running_var, self.weight, self.bias, False, 0.0, self.eps
+            )
+        return super().forward(x)
+
+
+class LmpEncoder(nn.Module):
+    """LSTM over the local movement profile, then FC+BN+PReLU twice, then FC to 2·D."""
+
+    def __init__(self, n_features: int, hidden: int, fc: int, latent_dim: int):
+        super().__init__()
+        self.lstm = nn.LSTM(n_features, hidden, batch_first=True)
+        self.head = nn.Sequential(
+            nn.Linear(hidden, fc),
+            SampleSafeBatchNorm1d(fc),
+            nn.PReLU(),
+            nn.Linear(fc, fc),
+            SampleSafeBatchNorm1d(fc),
+            nn.PReLU(),
+            nn.Linear(fc, 2 * latent_dim),
+        )
+        self.latent_dim = latent_dim
+
+    def forward(self, lmp: Tensor, mask: Tensor | None = None) -> tuple[Tensor, Tensor]:
+        """Mean and log-variance (B, D) of the code of ``lmp`` (B, T, F); ``mask`` (B, T) marks real frames.
+
+        The LSTM is causal, so reading its output at each clip's last real frame ignores padded frames.
+        """
+        out, _ = self.lstm(lmp)
+        if mask is None:
+            last = out[:, -1]
+        else:
+            idx = (mask.sum(dim=1).long() - 1).clamp(min=0)
+            last = out[torch.arange(out.shape[0], device=out.device), idx]
+        mu, logvar = self.head(last).split(self.latent_dim, dim=1)
+        return mu, logvar

@@ -1,0 +1,92 @@
+"""OdmoModel: LMP encoder + trajectory generator + motion generator, conditioned on action ⊗ code."""
+
+from __future__ import annotations
+
+import math
+
+import torch
+import torch.nn.functional as F  # noqa: N812
+from torch import Tensor, nn
+
+from engine.model.config import OdmoConfig
+from engine.model.encoder import LmpEncoder
+from engine.model.generator import MotionGenerator
+from engine.model.trajectory import TrajectoryGenerator
+
+
+class OdmoModel(nn.Module):
+    """The ODMO generator (paper sizes by default); parameters initialised from an explicit seed."""
+
+    def __init__(self, config: OdmoConfig, seed: int = 0):
+        super().__init__()
+        self.config = config
+        cond_dim = config.n_actions * config.latent_dim
+        # Built on the meta device so that construction never draws from torch's global RNG.
+        with torch.device("meta"):
+            self.encoder = LmpEncoder(
+                config.n_joints * 3, config.enc_hidden, config.enc_fc, config.latent_dim
+            )
+            self.traj_gen = TrajectoryGenerator(
+                cond_dim, config.traj_hidden, config.window, config.use_end_location
+            )
+            self.motion_gen = MotionGenerator(config.n_joints, cond_dim, config.motion_hidden, config.window)
+        self.to_empty(device="cpu")
+        self._init_buffers()
+        self.reset_parameters(torch.Generator().manual_seed(seed))
+
+    def _init_buffers(self) -> None:
+        """Fill the non-persistent time-step buffers (left empty by ``to_empty``)."""
+        t = self.config.window
+        self.traj_gen.steps.copy_((torch.arange(1, t, dtype=torch.float32) / t).view(1, -1, 1))
+        self.motion_gen.steps.copy_((torch.arange(t, dtype=torch.float32) / t).view(1, -1, 1))
+
+    @torch.no_grad()
+    def reset_parameters(self, generator: torch.Generator) -> None:
+        """Re-initialise every weight like torch's defaults, drawing only from ``generator``."""
+        for module in self.modules():
+            if isinstance(module, nn.Linear):
+                bound = 1.0 / math.sqrt(module.in_features)
+                module.weight.uniform_(-bound, bound, generator=generator)
+                module.bias.uniform_(-bound, bound, generator=generator)
+            elif isinstance(module, nn.LSTM):
+                bound = 1.0 / math.sqrt(module.hidden_size)
+                for p in module.parameters():
+                    p.uniform_(-bound, bound, generator=generator)
+            elif isinstance(module, nn.BatchNorm1d):
+                module.reset_running_stats()
+                module.weight.fill_(1.0)
+                module.bias.zero_()
+            elif isinstance(module, nn.PReLU):
+                module.weight.fill_(0.25)
+
+    def condition(self, z: Tensor, action: Tensor) -> Tensor:
+        """Outer product of the action one-hot and the code, flattened: (B, C·D)."""
+        onehot = F.one_hot(action.long(), self.config.n_actions).to(z.dtype)
+        return (onehot.unsqueeze(2) * z.unsqueeze(1)).flatten(1)
+
+    def encode(self, lmp: Tensor, mask: Tensor | None = None) -> tuple[Tensor, Tensor]:
+        """Code mean and log-variance (B, D) of local movement profiles ``lmp`` (B, T, J·3)."""
+        return self.encoder(lmp, mask)
+
+    def trajectory(self, z: Tensor, action: Tensor, end: Tensor | None = None) -> Tensor:
+        """Root trajectory (B, T, 3) of codes ``z`` (B, D) for ``action`` (B,), ending near ``end`` (B, 3)."""
+        return self.traj_gen(self.condition(z, action), end)
+
+    def decode(
+        self,
+        z: Tensor,
+        action: Tensor,
+        end: Tensor | None = None,
+        prev_truth: Tensor | None = None,
+        tf_rate: float = 0.0,
+        generator: torch.Generator | None = None,
+    ) -> tuple[Tensor, Tensor]:
+        """Joints (B, T, J, 3) and trajectory (B, T, 3) for codes ``z`` (B, D) and ``action`` (B,).
+
+        ``prev_truth`` (B, T, J, 3) enables (scheduled) teacher forcing for training; without it the
+        decoder runs free.
+        """
+        cond = self.condition(z, action)
+        traj = self.traj_gen(cond, end)
+        joints = self.motion_gen(traj, cond, prev_truth, tf_rate, generator)
+        return joints, traj
