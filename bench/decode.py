@@ -1,0 +1,98 @@
+"""Decode latency and throughput on CPU (T = 60, 21 joints, 10 actions, default sizes, random weights).
+
+Run: ``python bench/decode.py [--threads 2] [--repeats 50]``. Reference (public ODMO modules, same
+machine class): 17.9 ms for a batch of 2, 1,861 motions/s at batch 1024; aim: < 6 ms, >= 5,000/s.
+"""
+
+from __future__ import annotations
+
+import argparse
+import statistics
+import sys
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+import torch
+
+if __package__ in (None, ""):
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from bench._report import record
+from engine.generate import decode
+from engine.model.config import OdmoConfig
+from engine.model.odmo import OdmoModel
+from engine.modelio import LoadedModel
+from engine.motion.skeleton import Skeleton
+
+N_ACTIONS, N_JOINTS = 10, 21
+
+
+def _timed(fn: Callable[[], object], repeats: int) -> float:
+    """Median seconds of ``fn`` over ``repeats`` calls, after two warm-up calls."""
+    fn()
+    fn()
+    times = []
+    for _ in range(repeats):
+        start = time.perf_counter()
+        fn()
+        times.append(time.perf_counter() - start)
+    return statistics.median(times)
+
+
+def _loaded(model: OdmoModel, config: OdmoConfig) -> LoadedModel:
+    """A LoadedModel around random weights (no bank: end locations are given)."""
+    parents = np.arange(-1, N_JOINTS - 1)
+    skeleton = Skeleton(tuple(f"j{i}" for i in range(N_JOINTS)), parents, np.tile([0.0, 0.1, 0.0], (N_JOINTS, 1)))
+    return LoadedModel(
+        model=model,
+        config=config,
+        skeleton=skeleton,
+        action_names=[f"a{i}" for i in range(N_ACTIONS)],
+        fps=config.fps,
+        window=config.window,
+        root_height=0.9,
+        provenance={},
+        bank=None,
+        path=Path("random-weights"),
+    )
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Measure and record the decode benchmark."""
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--threads", type=int, default=2)
+    parser.add_argument("--repeats", type=int, default=50)
+    args = parser.parse_args(argv)
+    torch.set_num_threads(args.threads)
+    config = OdmoConfig(n_actions=N_ACTIONS, n_joints=N_JOINTS)
+    model = OdmoModel(config, seed=0).eval()
+    loaded = _loaded(model, config)
+    rng = np.random.default_rng(0)
+    code, end = rng.standard_normal(config.latent_dim), np.array([0.5, 0.0, 1.0])
+
+    rows = []
+    one = _timed(lambda: decode(loaded, code, 3, end), args.repeats)
+    rows.append({"what": "engine.generate.decode, one motion (API, Motion built)", "batch": 1,
+                 "ms": round(one * 1e3, 2), "motions/s": round(1 / one)})
+    for batch in (1, 2, 64, 1024):
+        z = torch.as_tensor(rng.standard_normal((batch, config.latent_dim)), dtype=torch.float32)
+        a = torch.as_tensor(rng.integers(0, N_ACTIONS, batch))
+        e = torch.as_tensor(rng.standard_normal((batch, 3)), dtype=torch.float32)
+
+        def run(z=z, a=a, e=e) -> None:
+            with torch.inference_mode():
+                model.decode(z, a, e)
+
+        seconds = _timed(run, max(3, args.repeats // max(1, batch // 16)))
+        rows.append({"what": "OdmoModel.decode (inference_mode)", "batch": batch,
+                     "ms": round(seconds * 1e3, 2), "motions/s": round(batch / seconds)})
+    for row in rows:
+        print(row)
+    record("decode", rows, f"python bench/decode.py --threads {args.threads} --repeats {args.repeats}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,59 @@
+"""Encode a motion into a latent code and guess its action."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import torch
+from scipy.special import logsumexp
+
+from engine.errors import ConfigError
+from engine.generate._decode import as_codes
+from engine.modelio import LoadedModel
+from engine.motion.motion import Motion
+from engine.train.windows import crop_windows, prepare_clips
+
+
+def _check_skeleton(loaded: LoadedModel, motion: Motion) -> None:
+    """ConfigError naming both joint lists when the motion's skeleton is not the model's."""
+    ours, theirs = loaded.skeleton, motion.skeleton
+    if not ours.same_topology(theirs):
+        source = motion.meta.get("source", motion.meta.get("path", "the motion"))
+        raise ConfigError(
+            f"{source}: skeleton does not match the model's ({theirs.n_joints} joints "
+            f"[{', '.join(theirs.names)}] vs {ours.n_joints} joints [{', '.join(ours.names)}])"
+        )
+
+
+def guess_action(loaded: LoadedModel, code: np.ndarray) -> int | None:
+    """The action whose mode mixture gives ``code`` (D,) the highest density; None without a bank."""
+    bank = loaded.bank
+    if bank is None or not bank.modes:
+        return None
+    x = as_codes(loaded, code)
+    actions = sorted(bank.modes)
+    scores = [float(logsumexp(bank.modes[a].log_responsibilities(x)[0])) for a in actions]
+    return actions[int(np.argmax(scores))]
+
+
+def encode(loaded: LoadedModel, motion: Motion) -> tuple[np.ndarray, int | None]:
+    """Posterior mean code (D,) of ``motion`` and a guess of its action index (None without a bank).
+
+    The motion is resampled to the model's fps and canonicalised like a training window (frame-0 root
+    at the origin, facing +z); a clip longer than T frames is represented by its centre window, a
+    shorter one is padded with its last frame and masked.
+    """
+    _check_skeleton(loaded, motion)
+    # The label only routes the clip through the training preparation; it does not affect the code.
+    unlabelled = dataclasses.replace(motion, action=loaded.action_names[0])
+    prepared = prepare_clips([unlabelled], loaded.action_names, loaded.fps, loaded.window)
+    window = crop_windows(prepared, [0], None)
+    model = loaded.model
+    device = next(model.parameters()).device
+    with torch.inference_mode():
+        lmp = torch.as_tensor(window.lmp, dtype=torch.float32, device=device)
+        mask = torch.as_tensor(window.mask, device=device)
+        mu, _ = model.encode(lmp, mask)
+    code = mu[0].cpu().numpy().astype(np.float32)
+    return code, guess_action(loaded, code)
