@@ -15,7 +15,7 @@ import numpy as np
 
 from engine.errors import CancelledError, ConfigError, ModelFormatError
 from engine.fileio import atomic_write_bytes
-from engine.latent.geometry import idw_blend
+from engine.latent.geometry import NeighbourBlend
 from engine.latent.modes import ModeModel, discover_modes
 from engine.latent.projection import Projection, make_projection
 
@@ -46,6 +46,10 @@ class LatentBank:
     meta: list[dict[str, Any]]
     modes: dict[int, ModeModel] = field(default_factory=dict)
     projections: dict[str, Projection] = field(default_factory=dict)
+    # (action, k) -> end-location lookup, built on first use (the bank's arrays are not edited in place).
+    _end_blends: dict[tuple[int, int], NeighbourBlend] = field(
+        default_factory=dict, init=False, repr=False, compare=False
+    )
 
     def indices_of(self, action: int) -> np.ndarray:
         """(n,) indices of the codes of one action."""
@@ -64,7 +68,10 @@ class LatentBank:
             x = x[None]
         if x.ndim != 2 or x.shape[1] != self.codes.shape[1]:
             raise ConfigError(f"codes must have shape (M, {self.codes.shape[1]}), got {np.shape(codes)}")
-        return idw_blend(x, self.codes[idx], self.ends[idx], k).astype(np.float32)
+        key = (int(action), k)
+        if key not in self._end_blends:
+            self._end_blends[key] = NeighbourBlend(self.codes[idx], self.ends[idx], k)
+        return self._end_blends[key](x).astype(np.float32)
 
     def save(self, path: str | Path) -> None:
         """Write the bank to one .npz file atomically (plain arrays only; meta as JSON strings)."""

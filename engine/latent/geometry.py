@@ -132,47 +132,57 @@ def convex_hull(points: np.ndarray) -> np.ndarray:
         return pts[[int(np.argmin(along)), int(np.argmax(along))]]
 
 
-def idw_blend(query: np.ndarray, points: np.ndarray, values: np.ndarray, k: int = 8) -> np.ndarray:
-    """Blend ``values`` of the k nearest ``points`` to each query with continuous inverse-distance weights.
+class NeighbourBlend:
+    """Blends ``values`` of the k nearest ``points`` to each query with continuous inverse-distance weights.
 
     The weights are Franke–Little's ((R − d) / (R d))², R being the distance to the (k+1)-th nearest
     point, so a neighbour's weight falls to zero before it leaves the set: the blend is continuous as
-    the query moves, and exact (the point's own value) when the query coincides with a point.
+    the query moves, and exact (the point's own value) when the query coincides with a point. The k-d
+    tree is built once, so repeated queries (drags) cost a lookup each.
 
     Parameters
     ----------
-    query : (M, D), points : (N, D), values : (N, V), k : neighbours (clipped to N).
-
-    Returns
-    -------
-    (M, V) float64 array.
+    points : (N, D), values : (N, V), k : neighbours (clipped to N).
     """
-    q = _as_points(query, "query")
-    pts = _as_points(points, "points")
-    vals = np.asarray(values, dtype=np.float64)
-    if len(pts) == 0 or pts.shape[1] != q.shape[1] or vals.ndim != 2 or len(vals) != len(pts):
-        raise ConfigError(
-            f"cannot blend: query {q.shape}, points {pts.shape}, values {vals.shape} disagree or are empty"
-        )
-    if k < 1:
-        raise ConfigError(f"k must be at least 1, got {k}")
-    k = min(k, len(pts))
-    tree = cKDTree(pts)
-    if k < len(pts):
-        dist, idx = tree.query(q, k=k + 1)
-        reach = dist[:, k : k + 1]
-        dist, idx = dist[:, :k], idx[:, :k]
-    else:
-        dist, idx = tree.query(q, k=k)
-        dist, idx = dist.reshape(len(q), k), idx.reshape(len(q), k)
-        reach = np.full((len(q), 1), np.inf)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        weights = np.where(np.isinf(reach), 1.0 / dist, (reach - dist) / (reach * dist)) ** 2
-    exact = dist == 0.0
-    has_exact = exact.any(axis=1)
-    weights[has_exact] = exact[has_exact]
-    # All k neighbours as far as the (k+1)-th: no preferred neighbour, so blend them equally.
-    flat = weights.sum(axis=1) <= 0.0
-    weights[flat] = 1.0
-    weights /= weights.sum(axis=1, keepdims=True)
-    return np.einsum("mk,mkv->mv", weights, vals[idx])
+
+    def __init__(self, points: np.ndarray, values: np.ndarray, k: int = 8):
+        pts = _as_points(points, "points")
+        self.values = np.asarray(values, dtype=np.float64)
+        if len(pts) == 0 or self.values.ndim != 2 or len(self.values) != len(pts):
+            raise ConfigError(
+                f"cannot blend: points {pts.shape} and values {self.values.shape} disagree or are empty"
+            )
+        if k < 1:
+            raise ConfigError(f"k must be at least 1, got {k}")
+        self.k = min(k, len(pts))
+        self.tree = cKDTree(pts)
+
+    def __call__(self, query: np.ndarray) -> np.ndarray:
+        """(M, V) blended values at query points (M, D)."""
+        q = _as_points(query, "query")
+        if q.shape[1] != self.tree.m:
+            raise ConfigError(f"query has {q.shape[1]} dimensions, the points {self.tree.m}")
+        k = self.k
+        if k < self.tree.n:
+            dist, idx = self.tree.query(q, k=k + 1)
+            reach = dist[:, k : k + 1]
+            dist, idx = dist[:, :k], idx[:, :k]
+        else:
+            dist, idx = self.tree.query(q, k=k)
+            dist, idx = dist.reshape(len(q), k), idx.reshape(len(q), k)
+            reach = np.full((len(q), 1), np.inf)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            weights = np.where(np.isinf(reach), 1.0 / dist, (reach - dist) / (reach * dist)) ** 2
+        exact = dist == 0.0
+        has_exact = exact.any(axis=1)
+        weights[has_exact] = exact[has_exact]
+        # All k neighbours as far as the (k+1)-th: no preferred neighbour, so blend them equally.
+        flat = weights.sum(axis=1) <= 0.0
+        weights[flat] = 1.0
+        weights /= weights.sum(axis=1, keepdims=True)
+        return np.einsum("mk,mkv->mv", weights, self.values[idx])
+
+
+def idw_blend(query: np.ndarray, points: np.ndarray, values: np.ndarray, k: int = 8) -> np.ndarray:
+    """One-off :class:`NeighbourBlend`: (M, V) blend at query (M, D) of values (N, V) at points (N, D)."""
+    return NeighbourBlend(points, values, k)(query)

@@ -1,8 +1,9 @@
 """2D maps of the latent codes (PCA, t-SNE, UMAP) with forward and inverse transforms, stored without pickles.
 
 Every projection keeps the codes it was fit on (``codes_``) and their 2D positions (``embedding_``).
-Where a map has no exact inverse (or forward map, for t-SNE) the missing direction is a continuous
-inverse-distance-weighted blend of the k nearest neighbours (:func:`engine.latent.geometry.idw_blend`).
+Where a map has no exact inverse (PCA: the off-plane part) or no usable forward map for new codes (t-SNE,
+UMAP) the missing direction is a continuous inverse-distance-weighted blend of the k nearest neighbours
+(:class:`engine.latent.geometry.NeighbourBlend`), exact on the fitted codes and their embedding.
 
 ``inverse_transform(points2d, codes_ref)``: when reference codes (M, D) are given, each result keeps what
 the map cannot show of its reference code: x = inverse(p) + (ref − inverse(transform(ref))), so that
@@ -13,6 +14,7 @@ from __future__ import annotations
 
 import json
 import logging
+import warnings
 from typing import Any, ClassVar, Self
 
 import numpy as np
@@ -20,7 +22,7 @@ from sklearn.decomposition import PCA
 from sklearn.manifold import TSNE
 
 from engine.errors import ConfigError, ModelFormatError
-from engine.latent.geometry import idw_blend
+from engine.latent.geometry import NeighbourBlend
 
 log = logging.getLogger(__name__)
 
@@ -37,6 +39,7 @@ class Projection:
         self.k = k
         self.codes_: np.ndarray | None = None
         self.embedding_: np.ndarray | None = None
+        self._blends: dict[bool, NeighbourBlend] = {}
 
     def __init_subclass__(cls, **kwargs: Any):
         super().__init_subclass__(**kwargs)
@@ -53,9 +56,21 @@ class Projection:
             raise ConfigError(f"a {self.name} map needs codes of shape (N >= 3, D >= 2), got {x.shape}")
         if not np.all(np.isfinite(x)):
             raise ConfigError("codes contain NaN or infinite values")
-        self.codes_ = x
-        self.embedding_ = np.asarray(self._fit(x.astype(np.float64)), dtype=np.float64)
+        self._set_fitted(x, self._fit(x.astype(np.float64)))
         return self
+
+    def _set_fitted(self, codes: np.ndarray, embedding: np.ndarray) -> None:
+        """Install fitted codes and embedding, dropping neighbour lookups built for older ones."""
+        self.codes_, self.embedding_ = codes, np.asarray(embedding, dtype=np.float64)
+        self._blends = {}
+
+    def _blend(self, inverse: bool) -> NeighbourBlend:
+        """The neighbour blend from codes to the plane, or (``inverse``) from the plane to codes."""
+        if inverse not in self._blends:
+            codes, embedding = self._fitted()
+            source, target = (embedding, codes) if inverse else (codes, embedding)
+            self._blends[inverse] = NeighbourBlend(source, target, self.k)
+        return self._blends[inverse]
 
     def _fit(self, x: np.ndarray) -> np.ndarray:
         """Fit on float64 codes (N, D) and return the embedding (N, 2)."""
@@ -85,8 +100,7 @@ class Projection:
 
     def _transform(self, x: np.ndarray) -> np.ndarray:
         """Default forward map: blend of the k nearest fit codes' embeddings."""
-        fit_codes, embedding = self._fitted()
-        return idw_blend(x, fit_codes, embedding, self.k)
+        return self._blend(inverse=False)(x)
 
     def inverse_transform(self, points2d: np.ndarray, codes_ref: np.ndarray | None = None) -> np.ndarray:
         """Codes (M, D) of plane points (M, 2); ``codes_ref`` (M, D) keeps their off-map part (see module)."""
@@ -102,8 +116,7 @@ class Projection:
 
     def _inverse(self, points: np.ndarray) -> np.ndarray:
         """Default inverse: blend of the codes whose embeddings are nearest."""
-        fit_codes, embedding = self._fitted()
-        return idw_blend(points, embedding, fit_codes, self.k)
+        return self._blend(inverse=True)(points)
 
     def to_arrays(self, prefix: str) -> dict[str, np.ndarray]:
         """Fitted state as plain arrays under keys starting with ``prefix``."""
@@ -145,7 +158,7 @@ class Projection:
             raise ModelFormatError(
                 f"projection {prefix!r}: codes {codes.shape} and embedding {embedding.shape}"
             )
-        projection.codes_, projection.embedding_ = codes, embedding
+        projection._set_fitted(codes, embedding)
         return projection
 
 
@@ -216,13 +229,12 @@ class TSNEProjection(Projection):
 
 
 class UMAPProjection(Projection):
-    """umap-learn's UMAP (seeded, imported lazily).
+    """umap-learn's UMAP (seeded, imported lazily); codes are placed and points inverted by neighbour blends.
 
-    While the fitted umap model is in memory (``model_``), transform is umap's own. The model (numba
-    graphs, a nearest-neighbour index) cannot be stored without pickle, so a loaded projection keeps codes
-    and embedding only and places new codes by the neighbour blend, as t-SNE does. The inverse is always
-    the neighbour blend: umap-learn 0.5's ``inverse_transform`` compiles a numba function on every call
-    (seconds per point), far too slow for clicks and drags, and needs the model a loaded bank lacks.
+    umap's own model (numba graphs, a nearest-neighbour index) cannot be stored without pickle, and its
+    transform and inverse_transform are too slow for clicks and drags (measured with umap-learn 0.5 on
+    2 cores: transform of one code took seconds at N = 10k, and inverse_transform compiles a numba
+    function on every call), so only the fitted embedding is kept: a fresh and a loaded map behave alike.
     """
 
     name = "umap"
@@ -231,26 +243,23 @@ class UMAPProjection(Projection):
         super().__init__(seed, k)
         self.n_neighbors = n_neighbors
         self.min_dist = min_dist
-        self.model_: Any = None
 
     def params(self) -> dict[str, Any]:
         return {**super().params(), "n_neighbors": self.n_neighbors, "min_dist": self.min_dist}
 
     def _fit(self, x: np.ndarray) -> np.ndarray:
-        import umap  # lazy: importing umap compiles numba code
+        with warnings.catch_warnings():
+            # umap announces with an ImportWarning that TensorFlow (for ParametricUMAP, unused) is absent.
+            warnings.simplefilter("ignore", ImportWarning)
+            import umap  # lazy: importing umap compiles numba code
 
-        self.model_ = umap.UMAP(
+        reducer = umap.UMAP(
             n_components=2,
             n_neighbors=min(self.n_neighbors, len(x) - 1),
             min_dist=self.min_dist,
             random_state=self.seed,
-        ).fit(x)
-        return self.model_.embedding_
-
-    def _transform(self, x: np.ndarray) -> np.ndarray:
-        if self.model_ is None:
-            return super()._transform(x)
-        return np.asarray(self.model_.transform(x), dtype=np.float64)
+        )
+        return reducer.fit_transform(x)
 
 
 def make_projection(name: str, seed: int = 0, **kw: Any) -> Projection:
