@@ -101,7 +101,7 @@ def format_table(result: dict[str, Any]) -> str:
 def _cmd_eval(args: argparse.Namespace) -> int:
     from engine.fileio import atomic_write_text
     from engine.metrics.classifier import META_FILE, load_classifier
-    from engine.metrics.evaluate import evaluate
+    from engine.metrics.evaluate import check_compatible, evaluate
     from engine.modelio import load_model
 
     loaded = load_model(args.model)
@@ -110,6 +110,7 @@ def _cmd_eval(args: argparse.Namespace) -> int:
         clf_dir = Path(args.model) / "classifier"
     classifier = None if clf_dir is None else load_classifier(clf_dir)
     data = _load_clips(args.real, args)
+    check_compatible(loaded, data.clips, classifier)  # fail before the progress bar appears
     with _bar("evaluating") as progress:
         result = evaluate(
             loaded,

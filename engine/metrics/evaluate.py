@@ -49,8 +49,9 @@ def check_compatible(loaded: LoadedModel, clips: Sequence[Motion], classifier: C
             )
     if classifier is None:
         return
-    if classifier.action_names != list(loaded.action_names):
-        raise ConfigError("the classifier's actions differ from the model's (train it on the same folder)")
+    unknown = sorted({c.action for c in clips} - set(classifier.action_names))
+    if unknown:
+        raise ConfigError(f"the classifier does not know the action(s) {', '.join(map(repr, unknown))}")
     if classifier.skeleton_names != tuple(names):
         raise ConfigError("the classifier's skeleton differs from the model's")
     if classifier.config.window != loaded.window or classifier.config.fps != loaded.fps:
@@ -73,18 +74,28 @@ def _by_action(windows: np.ndarray, labels: np.ndarray) -> dict[int, np.ndarray]
     return {int(a): windows[labels == a] for a in np.unique(labels) if np.count_nonzero(labels == a) >= 2}
 
 
+def _classify(
+    classifier: Classifier, windows: np.ndarray, mask: np.ndarray | None, names: list[str]
+) -> tuple[np.ndarray, np.ndarray]:
+    """Features (N, F) and predictions (N,) as indices into the model's ``names`` (-1: not a model action)."""
+    feats, pred = classifier.classify(windows, mask)
+    to_model = np.array([names.index(a) if a in names else -1 for a in classifier.action_names])
+    return feats, to_model[pred]
+
+
 def _set_metrics(
     windows: np.ndarray,
     mask: np.ndarray | None,
     labels: np.ndarray,
     reference: dict[str, Any],
     classifier: Classifier | None,
+    names: list[str],
     rng: np.random.Generator,
 ) -> dict[str, float]:
     """Classifier and APD metrics of one motion set against a reference real set."""
     out: dict[str, float] = {}
     if classifier is not None:
-        feats, pred = classifier.classify(windows, mask)
+        feats, pred = _classify(classifier, windows, mask, names)
         out["accuracy"] = recognition_accuracy(pred, labels)
         out["fid"] = fid(feats, reference["features"])
         out["diversity"] = diversity(feats, rng)
@@ -164,7 +175,7 @@ def _control_metrics(
                 windows_c = canonical_windows(
                     [Motion(j, loaded.fps, loaded.skeleton) for j in joints], classifier.config.window
                 )
-                hits[key].append(classifier.classify(windows_c)[1] == a)
+                hits[key].append(_classify(classifier, windows_c, None, list(loaded.action_names))[1] == a)
     if not err["in"]:
         return {}
     out = {}
@@ -217,10 +228,12 @@ def evaluate(
         rng = np.random.default_rng([seed, r])
         sets = [crop_windows(prepared, _pick(labels, actions, n_per_action, rng), rng) for _ in range(2)]
         ref = _reference(sets[1], classifier)
-        real_runs.append(_set_metrics(sets[0].joints, sets[0].mask, sets[0].actions, ref, classifier, rng))
+        real_runs.append(
+            _set_metrics(sets[0].joints, sets[0].mask, sets[0].actions, ref, classifier, names, rng)
+        )
         ref = _reference(sets[0], classifier)
         gen, gen_labels = _generate(loaded, actions, n_per_action, strategy, rng)
-        gen_metrics = _set_metrics(gen, None, gen_labels, ref, classifier, rng)
+        gen_metrics = _set_metrics(gen, None, gen_labels, ref, classifier, names, rng)
         every = crop_windows(prepared, np.arange(len(real_clips)), rng)
         n_codes = max(1, n_per_action // CONTROL_POINTS)
         gen_metrics.update(_model_metrics(loaded, every, styles, classifier, strategy, n_codes, rng))

@@ -1,0 +1,142 @@
+"""evaluate() on the tiny model and the `odmo train-classifier` / `odmo eval` commands."""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import pytest
+
+import engine.cli
+from engine.errors import ConfigError
+from engine.metrics.classifier import Classifier, train_classifier
+from engine.metrics.evaluate import evaluate
+from engine.modelio import load_model
+from engine.motion.motion import Motion
+from tests.fixtures.procedural import PROCEDURAL_ACTIONS
+
+REAL_KEYS = {"accuracy", "fid", "diversity", "multimodality", "apd", "n_apd"}
+MODEL_KEYS = {"mode_homogeneity", "style_nmi", "style_ari", "reconstruction_error_m"}
+CONTROL_KEYS = {"end_error_m", "end_error_pct", "control_accuracy"}
+CONTROL_KEYS |= {"end_error_out_m", "end_error_out_pct", "control_accuracy_out"}
+
+
+@pytest.fixture(scope="module")
+def classifier(tmp_path_factory: pytest.TempPathFactory, procedural_clips: list[Motion]) -> Classifier:
+    """A briefly trained classifier (its quality does not matter here)."""
+    out = tmp_path_factory.mktemp("eval_classifier")
+    return train_classifier(procedural_clips, PROCEDURAL_ACTIONS, out, epochs=2, batch_size=16, seed=0)
+
+
+def test_evaluate_returns_every_metric_finite(
+    tiny_model_dir: Path, procedural_clips: list[Motion], classifier: Classifier
+) -> None:
+    loaded = load_model(tiny_model_dir)
+    result = evaluate(loaded, procedural_clips, classifier, repeats=2, n_per_action=10, seed=3)
+    assert set(result["real"]) == REAL_KEYS
+    assert set(result["generated"]) == REAL_KEYS | MODEL_KEYS | CONTROL_KEYS
+    for column in ("real", "generated"):
+        for name, cell in result[column].items():
+            assert math.isfinite(cell["mean"]) and math.isfinite(cell["ci95"]) and cell["ci95"] >= 0, name
+    gen = result["generated"]
+    assert 0.0 <= gen["accuracy"]["mean"] <= 1.0 and 0.0 <= result["real"]["accuracy"]["mean"] <= 1.0
+    assert gen["end_error_m"]["mean"] > 0 and gen["reconstruction_error_m"]["mean"] > 0
+    assert result["meta"]["repeats"] == 2 and result["meta"]["actions"] == PROCEDURAL_ACTIONS
+    again = evaluate(loaded, procedural_clips, classifier, repeats=2, n_per_action=10, seed=3)
+    assert again["generated"] == result["generated"] and again["real"] == result["real"]
+    # two real sets drawn from the same clips: n-APD near 1, FID far below generated-vs-real
+    assert result["real"]["n_apd"]["mean"] == pytest.approx(1.0, abs=0.2)
+    assert result["real"]["fid"]["mean"] < result["generated"]["fid"]["mean"]
+
+
+def test_mismatched_actions_or_skeleton_fail(tiny_model_dir: Path, procedural_clips: list[Motion]) -> None:
+    loaded = load_model(tiny_model_dir)
+    clip = procedural_clips[0]
+    stranger = Motion(clip.joints, clip.fps, clip.skeleton, action="cartwheel", meta={"source": "x.npz"})
+    with pytest.raises(ConfigError, match="cartwheel"):
+        evaluate(loaded, [*procedural_clips, stranger], None, repeats=1)
+    keep = list(range(clip.n_joints - 1))
+    small = Motion(clip.joints[:, keep], clip.fps, clip.skeleton.subset(keep), action=clip.action)
+    with pytest.raises(ConfigError, match="skeleton"):
+        evaluate(loaded, [small], None, repeats=1)
+
+
+def _write_folder(clips: list[Motion], folder: Path) -> Path:
+    folder.mkdir()
+    rows = ["file,action,style"]
+    for i, clip in enumerate(clips):
+        name = f"clip_{i:03d}.npz"
+        clip.save(folder / name)
+        rows.append(f"{name},{clip.action},{clip.meta['style']}")
+    (folder / "labels.csv").write_text("\n".join(rows) + "\n")
+    return folder
+
+
+def _odmo(argv: list[str], monkeypatch: pytest.MonkeyPatch) -> int:
+    if "engine.cli.eval_commands" not in engine.cli.COMMAND_MODULES:
+        monkeypatch.setattr(
+            engine.cli, "COMMAND_MODULES", (*engine.cli.COMMAND_MODULES, "engine.cli.eval_commands")
+        )
+    return engine.cli.main(argv)
+
+
+def test_cli_train_classifier_and_eval(
+    tiny_model_dir: Path,
+    procedural_clips: list[Motion],
+    tmp_path: Path,
+    monkeypatch: pytest.MonkeyPatch,
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    data = _write_folder(procedural_clips, tmp_path / "real")
+    clf = tmp_path / "clf"
+    code = _odmo(
+        [
+            "train-classifier",
+            "--data",
+            str(data),
+            "--labels",
+            "labels.csv",
+            "--out",
+            str(clf),
+            "--epochs",
+            "1",
+        ],
+        monkeypatch,
+    )
+    assert code == 0 and (clf / "classifier.json").is_file() and (clf / "classifier.safetensors").is_file()
+    assert "held-out accuracy" in capsys.readouterr().out
+    out = tmp_path / "eval.json"
+    argv = ["eval", "--model", str(tiny_model_dir), "--real", str(data), "--labels", "labels.csv"]
+    argv += ["--classifier", str(clf), "--repeats", "2", "--n-per-action", "10", "--json", str(out)]
+    assert _odmo(argv, monkeypatch) == 0
+    table = capsys.readouterr().out
+    assert "fid" in table and "style_nmi" in table
+    result = json.loads(out.read_text())
+    assert set(result) == {"real", "generated", "meta"}
+    assert set(result["generated"]["accuracy"]) == {"mean", "ci95"}
+    assert result["generated"].keys() >= REAL_KEYS | MODEL_KEYS | CONTROL_KEYS
+
+
+def test_cli_errors_are_one_line(
+    tiny_model_dir: Path,
+    procedural_clips: list[Motion],
+    tmp_path: Path,
+    monkeypatch: pytest.MonkeyPatch,
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    keep = list(range(procedural_clips[0].n_joints - 1))
+    smaller = [
+        Motion(c.joints[:, keep], c.fps, c.skeleton.subset(keep), action=c.action, meta=c.meta)
+        for c in procedural_clips[:6]
+    ]
+    data = _write_folder(smaller, tmp_path / "other")
+    base = ["eval", "--model", str(tiny_model_dir), "--real", str(data), "--labels", "labels.csv"]
+    for argv in (
+        base,
+        [*base, "--classifier", str(tmp_path / "none")],
+        ["eval", "--model", str(data), "--real", str(data)],
+    ):
+        assert _odmo(argv, monkeypatch) == 1
+        err = capsys.readouterr().err.strip()
+        assert err.startswith("odmo eval: error:") and "\n" not in err
