@@ -73,9 +73,17 @@ class MotionGenerator(nn.Module):
         return self._run(prev, const, state).view(b, self.window, -1, 3)
 
     def _free_run(self, const: Tensor, state: tuple[Tensor, Tensor]) -> Tensor:
-        """Autoregressive decode, one frame at a time with LSTM cells sharing the nn.LSTM weights."""
+        """Autoregressive decode, one frame at a time with LSTM cells sharing the nn.LSTM weights.
+
+        The output layer and the next frame's pose embedding are folded into one H×H product
+        (pose_t = W_out·h_t + b, so W_pose·pose_t = (W_pose·W_out)·h_t + W_pose·b); every frame's
+        pose is then read out of the stacked hidden states with a single matrix product.
+        """
         lstm = self.lstm
         w_pose = self.embed.weight[:, : self.pose_dim]
+        fused = (w_pose @ self.out.weight).t()
+        const_next = const + self.out.bias @ w_pose.t()
+        slope = self.embed_act.weight
         layers = [
             (
                 getattr(lstm, f"weight_ih_l{k}"),
@@ -87,14 +95,14 @@ class MotionGenerator(nn.Module):
         ]
         h = list(state[0].unbind(0))
         c = list(state[1].unbind(0))
-        b = const.shape[0]
-        poses = const.new_empty(b, self.window, self.pose_dim)
-        prev = const.new_zeros(b, self.pose_dim)
+        tops = []
+        x = const[:, 0]
         for t in range(self.window):
-            x = self.embed_act(torch.addmm(const[:, t], prev, w_pose.t()))
+            if t > 0:
+                x = torch.addmm(const_next[:, t], h[-1], fused)
+            x = F.prelu(x, slope)
             for k, (w_ih, w_hh, b_ih, b_hh) in enumerate(layers):
                 h[k], c[k] = torch.lstm_cell(x, (h[k], c[k]), w_ih, w_hh, b_ih, b_hh)
                 x = h[k]
-            prev = torch.addmm(self.out.bias, x, self.out.weight.t())
-            poses[:, t] = prev
-        return poses
+            tops.append(x)
+        return self.out(torch.stack(tops, dim=1))

@@ -1,0 +1,185 @@
+"""The ODMO networks and losses: shapes, batch of one, decoding paths, masking, known loss values."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+import torch
+
+from engine.errors import ConfigError, ModelFormatError
+from engine.model.config import OdmoConfig
+from engine.model.losses import contrastive_loss, masked_mse, odmo_losses, prior_loss
+from engine.model.odmo import OdmoModel
+
+J, T = 5, 12
+
+
+def _model(**changes: object) -> OdmoModel:
+    cfg = OdmoConfig(n_actions=3, n_joints=J, window=T, enc_fc=32, traj_hidden=16, motion_hidden=16)
+    return OdmoModel(OdmoConfig(**(cfg.to_dict() | changes)), seed=1)
+
+
+def test_shapes_and_batch_of_one_in_train_and_eval_mode() -> None:
+    model = _model()
+    for training in (True, False):
+        model.train(training)
+        mu, logvar = model.encode(torch.randn(1, T, J * 3), torch.ones(1, T, dtype=torch.bool))
+        assert mu.shape == logvar.shape == (1, 20)
+        joints, traj = model.decode(mu, torch.tensor([2]), torch.zeros(1, 3))
+        assert joints.shape == (1, T, J, 3) and traj.shape == (1, T, 3)
+        tf, _ = model.decode(
+            mu, torch.tensor([2]), torch.zeros(1, 3), prev_truth=joints.detach(), tf_rate=0.5
+        )
+        assert tf.shape == (1, T, J, 3)
+    torch.testing.assert_close(traj[:, 0], torch.zeros(1, 3))
+
+
+def test_free_running_decode_matches_a_step_by_step_nn_lstm_loop() -> None:
+    model = _model().eval()
+    gen = model.motion_gen
+    z, action, end = torch.randn(4, 20), torch.tensor([0, 1, 2, 1]), torch.randn(4, 3)
+    with torch.no_grad():
+        joints, traj = model.decode(z, action, end)
+        state, _ = gen._context(traj, model.condition(z, action))
+        prev, poses = torch.zeros(4, J * 3), []
+        for t in range(T):
+            x = torch.cat([prev, model.condition(z, action), torch.full((4, 1), t / T)], dim=1)
+            out, state = gen.lstm(gen.embed_act(gen.embed(x))[:, None], state)
+            prev = gen.out(out[:, 0])
+            poses.append(prev)
+    torch.testing.assert_close(joints, torch.stack(poses, 1).view(4, T, J, 3), atol=1e-5, rtol=1e-5)
+
+
+def test_teacher_forcing_is_causal_and_full_forcing_ignores_the_generator() -> None:
+    model = _model().eval()
+    z, action, end = torch.randn(2, 20), torch.tensor([0, 1]), torch.randn(2, 3)
+    truth = torch.randn(2, T, J, 3)
+    changed = truth.clone()
+    changed[:, 6] += 1.0
+    with torch.no_grad():
+        a, _ = model.decode(z, action, end, prev_truth=truth, tf_rate=1.0)
+        b, _ = model.decode(z, action, end, prev_truth=changed, tf_rate=1.0)
+    torch.testing.assert_close(a[:, :7], b[:, :7])
+    assert (a[:, 7] - b[:, 7]).abs().max() > 1e-4
+
+
+def test_scheduled_sampling_mixes_truth_and_predictions() -> None:
+    model = _model().eval()
+    z, action, end = torch.randn(2, 20), torch.tensor([0, 1]), torch.randn(2, 3)
+    truth = torch.randn(2, T, J, 3)
+    with torch.no_grad():
+        forced, _ = model.decode(z, action, end, prev_truth=truth, tf_rate=1.0)
+        mixed, _ = model.decode(
+            z, action, end, prev_truth=truth, tf_rate=0.5, generator=torch.Generator().manual_seed(0)
+        )
+        none, _ = model.decode(z, action, end, prev_truth=truth, tf_rate=0.0)
+    torch.testing.assert_close(forced[:, 0], mixed[:, 0])
+    assert (forced - mixed).abs().max() > 1e-4 and (none - mixed).abs().max() > 1e-4
+
+
+def test_construction_is_seeded_and_leaves_global_rng_alone() -> None:
+    before = torch.random.get_rng_state()
+    a, b, c = _model(), _model(), OdmoModel(_model().config, seed=2)
+    assert torch.equal(torch.random.get_rng_state(), before)
+    sa, sb, sc = a.state_dict(), b.state_dict(), c.state_dict()
+    assert all(torch.equal(sa[k], sb[k]) for k in sa)
+    assert any(not torch.equal(sa[k], sc[k]) for k in sa)
+
+
+def test_end_location_switch() -> None:
+    with pytest.raises(ValueError, match="end locations"):
+        _model().trajectory(torch.randn(2, 20), torch.tensor([0, 1]))
+    off = _model(use_end_location=False)
+    assert off.trajectory(torch.randn(2, 20), torch.tensor([0, 1])).shape == (2, T, 3)
+    assert off.traj_gen.embed[0].in_features == 3 * 20
+
+
+def test_masked_loss_ignores_padded_frames() -> None:
+    pred, target = torch.randn(3, T, J, 3), torch.randn(3, T, J, 3)
+    mask = torch.ones(3, T, dtype=torch.bool)
+    mask[1, 8:] = False
+    base = masked_mse(pred, target, mask)
+    pred2, target2 = pred.clone(), target.clone()
+    pred2[1, 8:] += 100.0
+    target2[1, 8:] -= 50.0
+    torch.testing.assert_close(masked_mse(pred2, target2, mask), base)
+    expected = torch.cat([(pred - target)[0], (pred - target)[1, :8], (pred - target)[2]]).square().mean()
+    torch.testing.assert_close(base, expected)
+
+
+def test_every_frame_loss_term_ignores_padding() -> None:
+    model = _model()
+    cfg = model.config
+    joints, mask = torch.randn(4, T, J, 3), torch.ones(4, T, dtype=torch.bool)
+    mask[0, 5:] = False
+    kw = {
+        "mu": torch.randn(4, 20),
+        "logvar": torch.randn(4, 20),
+        "same": torch.tensor([True, False]),
+        "root": 0,
+    }
+    pred = torch.randn(4, T, J, 3)
+    a = odmo_losses(cfg, joints=joints, trajectory=joints[:, :, 0], mask=mask, pred_joints=pred,
+                    pred_trajectory=pred[:, :, 1], **kw)  # fmt: skip
+    joints2, pred2 = joints.clone(), pred.clone()
+    joints2[0, 5:] = 7.0
+    pred2[0, 5:] = -3.0
+    b = odmo_losses(cfg, joints=joints2, trajectory=joints2[:, :, 0], mask=mask, pred_joints=pred2,
+                    pred_trajectory=pred2[:, :, 1], **kw)  # fmt: skip
+    for k in a:
+        torch.testing.assert_close(a[k], b[k])
+
+
+def test_contrastive_known_values() -> None:
+    mu_a = torch.zeros(4, 2)
+    mu_b = torch.tensor([[0.3, 0.0], [1.0, 0.0], [3.0, 4.0], [6.0, 0.0]])
+    same = torch.tensor([True, True, False, False])
+    # same: 0.5·relu(0.09 − 0.25) = 0, 0.5·relu(1 − 0.25) = 0.375
+    # different: 0.5·(5 − 5)² = 0, 0.5·relu(5 − 6)² = 0
+    torch.testing.assert_close(contrastive_loss(mu_a, mu_b, same, 5.0), torch.tensor(0.375 / 4))
+    near = torch.tensor([[1.0, 0.0]])
+    torch.testing.assert_close(
+        contrastive_loss(torch.zeros(1, 2), near, torch.tensor([False]), 5.0), torch.tensor(8.0)
+    )
+
+
+def test_prior_is_minimal_at_variance_sigma2() -> None:
+    logvars = torch.linspace(-6, 1, 701).view(-1, 1)
+    values = torch.stack([prior_loss(lv.view(1, 1), 0.05) for lv in logvars])
+    best = logvars[values.argmin()].item()
+    assert math.isclose(math.exp(best), 0.05, rel_tol=0.01)
+    assert abs(prior_loss(torch.full((2, 3), math.log(0.05)), 0.05).item()) < 1e-6
+
+
+def test_zero_weight_switches_a_term_off() -> None:
+    cfg = _model(w_recon=0.0, w_prior=2.0).config
+    joints = torch.randn(2, T, J, 3)
+    terms = odmo_losses(
+        cfg,
+        joints=joints,
+        trajectory=joints[:, :, 0],
+        mask=torch.ones(2, T, dtype=torch.bool),
+        pred_joints=joints + 1,
+        pred_trajectory=joints[:, :, 0],
+        mu=torch.zeros(2, 20),
+        logvar=torch.zeros(2, 20),
+        same=torch.tensor([True]),
+        root=0,
+    )
+    expected = terms["traj"] + terms["consistency"] + terms["contrastive"] + 2 * terms["prior"]
+    torch.testing.assert_close(terms["total"], expected)
+    assert terms["recon"] > 0
+
+
+def test_config_round_trip_and_validation() -> None:
+    cfg = OdmoConfig(n_actions=10, n_joints=21, alpha=4.0)
+    assert OdmoConfig.from_dict(cfg.to_dict()) == cfg
+    with pytest.raises(ModelFormatError, match="unknown model config keys: bogus"):
+        OdmoConfig.from_dict(cfg.to_dict() | {"bogus": 1})
+    with pytest.raises(ModelFormatError, match="invalid"):
+        OdmoConfig.from_dict({"n_actions": 2})
+    with pytest.raises(ConfigError):
+        OdmoConfig(n_actions=0, n_joints=21)
+    assert cfg.teacher_forcing(0) == 1.0 and math.isclose(cfg.teacher_forcing(10_000), 0.3)
+    assert math.isclose(cfg.teacher_forcing(cfg.tf_decay_epochs // 2), 0.65)

@@ -1,0 +1,89 @@
+"""Training: losses fall, pairs stay in the training split, exact resume, cancel, progress, log."""
+
+from __future__ import annotations
+
+import csv
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+from safetensors.torch import load_file
+
+from engine.errors import CancelledError, ModelFormatError
+from engine.model.losses import LOSS_TERMS
+from engine.motion.motion import Motion
+from engine.train.loop import TrainProgress, train
+from engine.train.pairs import PairSampler, split_clips
+from tests.fixtures.procedural import PROCEDURAL_ACTIONS
+from tests.fixtures.tiny_model import single_thread, tiny_config
+
+
+def test_short_training_lowers_every_loss_term(tiny_model_dir: Path) -> None:
+    with open(tiny_model_dir / "train_log.csv", newline="") as handle:
+        rows = list(csv.DictReader(handle))
+    assert len(rows) == tiny_config().epochs
+    for term in LOSS_TERMS:
+        first, last = float(rows[0][f"train_{term}"]), float(rows[-1][f"train_{term}"])
+        assert last < first, term
+        assert np.isfinite(float(rows[-1][f"val_{term}"]))
+    assert float(rows[0]["tf_rate"]) == 1.0 > float(rows[-1]["tf_rate"])
+
+
+def test_split_is_by_clip_stratified_and_seeded() -> None:
+    actions = np.repeat([0, 1, 2], [30, 10, 3])
+    train_idx, val_idx = split_clips(actions, 0.2, seed=5)
+    assert np.intersect1d(train_idx, val_idx).size == 0
+    assert np.union1d(train_idx, val_idx).tolist() == list(range(43))
+    assert np.bincount(actions[val_idx]).tolist() == [6, 2, 1]
+    again, _ = split_clips(actions, 0.2, seed=5)
+    other, _ = split_clips(actions, 0.2, seed=6)
+    assert np.array_equal(again, train_idx) and not np.array_equal(other, train_idx)
+
+
+def test_pairs_never_include_validation_clips_and_are_balanced() -> None:
+    actions = np.repeat([0, 1, 2], [60, 20, 5])
+    train_idx, val_idx = split_clips(actions, 0.25, seed=0)
+    sampler = PairSampler(actions, train_idx)
+    rng = np.random.default_rng(0)
+    anchors, slot = sampler.anchors(30_000, rng)
+    partners, same = sampler.partners(slot, rng)
+    drawn = np.concatenate([anchors, partners])
+    assert not np.isin(drawn, val_idx).any()
+    assert np.array_equal(actions[anchors] == actions[partners], same)
+    assert abs(same.mean() - 0.5) < 0.02
+    assert np.allclose(np.bincount(actions[anchors]) / 30_000, 1 / 3, atol=0.02)
+    assert set(np.unique(drawn)) == set(train_idx)
+
+
+def _run(clips: list[Motion], out: Path, **kw: object) -> object:
+    cfg = tiny_config(
+        epochs=3, epoch_size=64, batch_size=32, tf_decay_epochs=2, traj_hidden=16, motion_hidden=16
+    )
+    with single_thread():
+        return train(clips, PROCEDURAL_ACTIONS, out, cfg, seed=3, device="cpu", checkpoint_every=1,
+                     bank_projections=("pca",), bank_k_range=(3, 3), **kw)  # fmt: skip
+
+
+def test_resume_after_cancel_gives_the_uninterrupted_weights(
+    tmp_path: Path, procedural_clips: list[Motion]
+) -> None:
+    clips = procedural_clips[::2]
+    reports: list[TrainProgress] = []
+    full = _run(clips, tmp_path / "full", progress=reports.append)
+    steps = reports[0].steps
+    assert [r.epoch for r in reports if r.stage == "train"] == [e for e in (1, 2, 3) for _ in range(steps)]
+    assert reports[-1].stage == "bank" and all(r.eta_s >= 0 for r in reports)
+    calls = iter(range(10_000))
+    with pytest.raises(CancelledError, match="epoch 3"):
+        _run(clips, tmp_path / "cut", cancel=lambda: next(calls) >= 2 * steps)
+    assert not (tmp_path / "cut" / "model.safetensors").exists()
+    resumed = _run(clips, tmp_path / "cut", resume=True)
+    a = load_file(full.model_dir / "model.safetensors")
+    b = load_file(resumed.model_dir / "model.safetensors")
+    assert all(torch.equal(a[k], b[k]) for k in a)
+    log_a = (full.model_dir / "train_log.csv").read_text().splitlines()
+    log_b = (resumed.model_dir / "train_log.csv").read_text().splitlines()
+    assert len(log_a) == len(log_b) == 4
+    with pytest.raises(ModelFormatError, match="different config, seed or data"):
+        _run(clips[1:], tmp_path / "cut", resume=True)
