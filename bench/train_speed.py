@@ -1,0 +1,80 @@
+"""Training throughput (windows/s) on CPU at the default sizes (T = 60, 21 joints, 10 actions, batch 128).
+
+Synthetic smooth random clips; the full ``engine.train.train`` step is timed (cropping, canonical
+facing, encoder, trajectory and motion generators with parallel scheduled sampling, losses, backward,
+clipping, Adam). Run: ``python bench/train_speed.py [--threads 1 2] [--epochs 3]``. Target: >= 300
+windows/s on the 2-core CPU.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import tempfile
+from pathlib import Path
+
+import numpy as np
+import torch
+
+if __package__ in (None, ""):
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from bench._report import record
+from engine.model.config import OdmoConfig
+from engine.motion.motion import Motion
+from engine.motion.skeleton import Skeleton
+from engine.train.loop import TrainProgress, train
+
+N_ACTIONS, N_JOINTS = 10, 21
+
+
+def synthetic_clips(n_per_action: int, rng: np.random.Generator) -> tuple[list[Motion], list[str]]:
+    """Smooth random clips (40–200 frames at 20 fps) on a 21-joint chain skeleton with L/R names."""
+    names = ["Hips"] + [f"J{i}_{'L' if i % 2 else 'R'}" for i in range(1, N_JOINTS)]
+    parents = np.array([-1] + [max(0, i - 2) for i in range(1, N_JOINTS)])
+    skeleton = Skeleton(tuple(names), parents, rng.normal(scale=0.1, size=(N_JOINTS, 3)))
+    actions = [f"action{a}" for a in range(N_ACTIONS)]
+    clips = []
+    for a in actions:
+        for _ in range(n_per_action):
+            t = int(rng.integers(40, 201))
+            joints = np.cumsum(rng.normal(scale=0.01, size=(t, N_JOINTS, 3)), axis=0)
+            clips.append(Motion(joints.astype(np.float32), 20.0, skeleton, action=a))
+    return clips, actions
+
+
+def measure(threads: int, epochs: int, clips: list[Motion], actions: list[str]) -> dict[str, object]:
+    """Steady-state windows/s of the last epoch with ``threads`` torch threads."""
+    torch.set_num_threads(threads)
+    config = OdmoConfig(n_actions=N_ACTIONS, n_joints=N_JOINTS, epochs=epochs, epoch_size=1024)
+    last: list[TrainProgress] = []
+    with tempfile.TemporaryDirectory() as out:
+        train(clips, actions, Path(out), config, device="cpu", val_fraction=0.1, progress=last.append,
+              bank_projections=("pca",), bank_k_range=(3, 3))  # fmt: skip
+    final = [p for p in last if p.stage == "train" and p.epoch == epochs][-1]
+    return {
+        "threads": threads,
+        "batch (windows)": config.batch_size,
+        "steps/s": round(final.steps_per_s, 2),
+        "windows/s": round(final.windows_per_s, 1),
+        "ms/step": round(1000 / final.steps_per_s, 1),
+    }
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__)
+    parser.add_argument("--threads", type=int, nargs="+", default=[1, 2])
+    parser.add_argument("--epochs", type=int, default=3)
+    parser.add_argument("--no-record", action="store_true", help="print only")
+    args = parser.parse_args()
+    clips, actions = synthetic_clips(20, np.random.default_rng(0))
+    rows = [measure(n, args.epochs, clips, actions) for n in args.threads]
+    for row in rows:
+        print(row)
+    if not args.no_record:
+        command = "python bench/train_speed.py " + " ".join(sys.argv[1:])
+        record("Training throughput (CPU)", rows, command.strip())
+
+
+if __name__ == "__main__":
+    main()
