@@ -100,7 +100,8 @@ class LatentBank:
     def load(cls, path: str | Path) -> LatentBank:
         """Read a bank written by :meth:`save`; ModelFormatError for missing, corrupt or newer files."""
         try:
-            with np.load(path, allow_pickle=False) as npz:
+            # Our own handle: np.load leaves its file open when the archive is corrupt.
+            with open(path, "rb") as handle, np.load(handle, allow_pickle=False) as npz:
                 arrays = {key: npz[key] for key in npz.files}
         except FileNotFoundError as exc:
             raise ModelFormatError(f"{path}: latent bank not found") from exc

@@ -2,10 +2,13 @@
 
 from __future__ import annotations
 
+from collections.abc import Iterator
+
 import numpy as np
 import pytest
 from scipy.stats import chisquare
 from sklearn.metrics import adjusted_rand_score
+from threadpoolctl import threadpool_limits
 
 from engine.errors import ConfigError
 from engine.latent.modes import ModeModel, choose_k, discover_modes
@@ -19,6 +22,13 @@ def planted(
     centers = rng.normal(0.0, spread, (len(sizes), dim))
     truth = np.repeat(np.arange(len(sizes)), sizes)
     return centers[truth] + rng.normal(size=(len(truth), dim)), truth
+
+
+@pytest.fixture(scope="module", autouse=True)
+def one_thread() -> Iterator[None]:
+    """OpenMP and BLAS on one thread: on a busy 2-core machine their spinning threads slow t-SNE 10x."""
+    with threadpool_limits(1):
+        yield
 
 
 @pytest.fixture(scope="module")

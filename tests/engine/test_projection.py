@@ -3,10 +3,12 @@
 from __future__ import annotations
 
 import io
+from collections.abc import Iterator
 
 import numpy as np
 import pytest
 from sklearn.neighbors import KNeighborsClassifier
+from threadpoolctl import threadpool_limits
 
 from engine.errors import ConfigError, ModelFormatError
 from engine.latent.projection import (
@@ -23,6 +25,13 @@ def clusters(n_per: int = 70, dim: int = 12, seed: int = 0) -> tuple[np.ndarray,
     centers = rng.normal(0.0, 6.0, (3, dim))
     labels = np.repeat(np.arange(3), n_per)
     return (centers[labels] + rng.normal(size=(len(labels), dim))).astype(np.float32), labels
+
+
+@pytest.fixture(scope="module", autouse=True)
+def one_thread() -> Iterator[None]:
+    """OpenMP and BLAS on one thread: on a busy 2-core machine their spinning threads slow t-SNE 10x."""
+    with threadpool_limits(1):
+        yield
 
 
 @pytest.fixture(scope="module")
