@@ -5,15 +5,22 @@ from __future__ import annotations
 import argparse
 import json
 import re
+import sys
+from collections.abc import Sequence
 from pathlib import Path
+from typing import Any
 
 import numpy as np
+from tqdm import tqdm
 
-from engine.errors import ConfigError
-from engine.generate import action_index, encode, interpolate, sample
-from engine.generate import Sample as GeneratedSample
-from engine.modelio import LoadedModel, load_model
+from engine.errors import ConfigError, DataError
+from engine.generate import Sample, action_index, encode, encode_clips, interpolate, sample
+from engine.latent.bank import build_bank
+from engine.model.config import OdmoConfig
+from engine.modelio import BANK_FILE, LoadedModel, load_model
+from engine.motion.datasets import Dataset, load_folder
 from engine.motion.motion import Motion
+from engine.train.loop import TrainProgress, train
 
 MOTION_SUFFIXES = (".npz", ".bvh", ".npy")
 ENDPOINT_HELP = (
@@ -34,7 +41,7 @@ def output_paths(out: Path, n: int, stem: str) -> list[Path]:
     return [out / f"{stem}_{i:03d}.npz" for i in range(n)]
 
 
-def _write(samples: list[GeneratedSample], out: Path, stem: str) -> None:
+def _write(samples: list[Sample], out: Path, stem: str) -> None:
     for s, path in zip(samples, output_paths(out, len(samples), stem), strict=True):
         s.motion.save(path)
         mode = "" if s.mode < 0 else f" mode {s.mode}"
@@ -67,17 +74,70 @@ def _end(args: argparse.Namespace) -> np.ndarray | None:
     return None if args.end is None else np.asarray(args.end, dtype=np.float32)
 
 
-def _cmd_train(args: argparse.Namespace) -> int:
-    from engine.cli._train_progress import TqdmProgress
-    from engine.model.config import OdmoConfig
-    from engine.motion.datasets import load_folder
-    from engine.train.loop import train
+class TqdmProgress:
+    """A tqdm bar fed by ``engine.train.loop.TrainProgress`` reports (loss terms, steps/s, ETA)."""
 
-    dataset = load_folder(args.data)
-    config = OdmoConfig(n_actions=len(dataset.action_names), n_joints=dataset.skeleton.n_joints, arch=args.arch)
+    def __init__(self) -> None:
+        self.bar = tqdm(total=1.0, unit="run", bar_format=_BAR, file=sys.stderr)
+        self.stage = ""
+
+    def __call__(self, report: TrainProgress) -> None:
+        """Show one report."""
+        if report.stage != self.stage:
+            self.stage = report.stage
+            self.bar.reset(total=1.0)
+        self.bar.n = report.fraction
+        if report.stage == "train":
+            losses = " ".join(f"{k}={v:.3g}" for k, v in report.losses.items())
+            self.bar.set_description(f"epoch {report.epoch}/{report.epochs}", refresh=False)
+            self.bar.set_postfix_str(f"{losses} | {report.steps_per_s:.1f} steps/s", refresh=False)
+        else:
+            self.bar.set_description(f"latent bank: {report.message}", refresh=False)
+            self.bar.set_postfix_str("", refresh=False)
+        self.bar.refresh()
+
+    def close(self) -> None:
+        """Close the bar."""
+        self.bar.close()
+
+
+_BAR = "{desc}: {percentage:3.0f}%|{bar}| [{elapsed}<{remaining}] {postfix}"
+
+
+def config_overrides(pairs: Sequence[str]) -> dict[str, Any]:
+    """``KEY=VALUE`` strings as config fields, values parsed as JSON when they can be (else strings)."""
+    out: dict[str, Any] = {}
+    for pair in pairs:
+        key, sep, value = pair.partition("=")
+        if not sep or not key:
+            raise ConfigError(f"bad --set {pair!r}; expected KEY=VALUE")
+        try:
+            out[key.strip()] = json.loads(value)
+        except json.JSONDecodeError:
+            out[key.strip()] = value
+    return out
+
+
+def _dataset(args: argparse.Namespace) -> Dataset:
+    return load_folder(args.data, pattern=args.pattern, labels=args.labels)
+
+
+def _cmd_train(args: argparse.Namespace) -> int:
+    dataset = _dataset(args)
+    fields = {
+        "n_actions": len(dataset.action_names),
+        "n_joints": dataset.skeleton.n_joints,
+        "arch": args.arch,
+    }
+    fields |= config_overrides(args.set)
     if args.epochs is not None:
-        config = OdmoConfig.from_dict({**config.to_dict(), "epochs": args.epochs})
-    with TqdmProgress(config.epochs) as progress:
+        fields["epochs"] = args.epochs
+    try:
+        config = OdmoConfig(**fields)
+    except TypeError as exc:
+        raise ConfigError(f"bad model setting: {exc}") from None
+    progress = TqdmProgress()
+    try:
         result = train(
             dataset.clips,
             dataset.action_names,
@@ -87,15 +147,54 @@ def _cmd_train(args: argparse.Namespace) -> int:
             device=args.device,
             resume=args.resume,
             progress=progress,
+            bank_projections=args.projections,
         )
-    print(f"{args.out}: {result}")
+    finally:
+        progress.close()
+    losses = " ".join(f"{k}={v:.4g}" for k, v in result.train_losses.items())
+    print(f"{result.model_dir}: {result.epochs} epochs, {result.train_seconds:.1f} s, {losses}")
+    return 0
+
+
+def _cmd_bank(args: argparse.Namespace) -> int:
+    loaded = load_model(args.model, with_bank=False)
+    dataset = _dataset(args)
+    unknown = sorted({c.action for c in dataset.clips} - set(loaded.action_names))
+    if unknown:
+        raise DataError(f"{args.data}: actions {unknown} are not the model's {loaded.action_names}")
+    codes, ends = encode_clips(loaded, dataset.clips)
+    progress = tqdm(total=1.0, bar_format=_BAR, file=sys.stderr)
+    try:
+
+        def report(message: str, fraction: float) -> None:
+            progress.n = fraction
+            progress.set_description(message)
+
+        bank = build_bank(
+            codes,
+            np.array([loaded.action_names.index(c.action) for c in dataset.clips]),
+            ends,
+            [str(c.meta.get("source", c.meta.get("path", i))) for i, c in enumerate(dataset.clips)],
+            [dict(c.meta) for c in dataset.clips],
+            loaded.action_names,
+            projections=args.projections,
+            seed=args.seed,
+            progress=report,
+        )
+    finally:
+        progress.close()
+    bank.save(loaded.path / BANK_FILE)
+    sizes = ", ".join(f"{loaded.action_names[a]}: {m.n_modes}" for a, m in sorted(bank.modes.items()))
+    print(f"{loaded.path / BANK_FILE}: {len(codes)} codes; modes {sizes}")
     return 0
 
 
 def _cmd_sample(args: argparse.Namespace) -> int:
     loaded = load_model(args.model)
     strategy = "mode" if args.mode is not None else args.strategy
-    samples = sample(loaded, args.action, args.n, args.seed, strategy=strategy, mode=args.mode, end=_end(args))
+    samples = sample(
+        loaded, args.action, args.n, args.seed, strategy=strategy, mode=args.mode, end=_end(args)
+    )
     _write(samples, args.out, args.action)
     return 0
 
@@ -131,17 +230,38 @@ def _cmd_encode(args: argparse.Namespace) -> int:
     return 0
 
 
+def _data_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--data", type=Path, required=True, help="dataset folder")
+    p.add_argument("--pattern", help="regex with a named group 'action' that labels file names")
+    p.add_argument("--labels", type=Path, help="CSV/JSON label sidecar (file,action[,style])")
+    p.add_argument(
+        "--projections",
+        type=lambda text: tuple(x for x in text.split(",") if x),
+        default=("pca", "tsne", "umap"),
+        help="comma-separated latent maps to fit (default pca,tsne,umap)",
+    )
+
+
 def register(subparsers: argparse._SubParsersAction) -> None:
     """Add the model sub-commands to ``odmo``."""
     p = subparsers.add_parser("train", help="train an ODMO model on a folder of labelled clips")
-    p.add_argument("--data", type=Path, required=True, help="dataset folder")
+    _data_arguments(p)
     p.add_argument("--out", type=Path, required=True, help="model folder to write")
     p.add_argument("--epochs", type=int, default=None, help="epochs of 2,048 windows (default: config's)")
     p.add_argument("--device", default="auto", choices=("auto", "cpu", "cuda"))
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--resume", action="store_true", help="continue from the folder's last checkpoint")
     p.add_argument("--arch", default="odmo", choices=("odmo",))
+    p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", help="any model setting")
     p.set_defaults(func=_cmd_train)
+
+    p = subparsers.add_parser(
+        "bank", help="rebuild a model's latent bank (codes, modes, maps) from a dataset"
+    )
+    p.add_argument("--model", type=Path, required=True, help="model folder")
+    _data_arguments(p)
+    p.add_argument("--seed", type=int, default=0)
+    p.set_defaults(func=_cmd_bank)
 
     p = subparsers.add_parser("sample", help="sample motions of one action from its discovered modes")
     p.add_argument("--model", type=Path, required=True, help="model folder")
@@ -151,7 +271,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--end", type=float, nargs=2, metavar=("X", "Z"), help="end location on the floor, metres")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--strategy", default="mode_preserving", choices=("mode_preserving", "conventional"))
-    p.add_argument("--out", type=Path, required=True, help="a .npz/.bvh/.npy file (numbered if N > 1) or a folder")
+    p.add_argument(
+        "--out", type=Path, required=True, help="a .npz/.bvh/.npy file (numbered if N > 1) or a folder"
+    )
     p.set_defaults(func=_cmd_sample)
 
     p = subparsers.add_parser(

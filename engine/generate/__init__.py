@@ -5,7 +5,7 @@ Decoded motions are returned at display height: the model works with the frame-0
 """
 
 from engine.generate._decode import action_index, decode, decode_array, decode_batch, resolve_ends
-from engine.generate._encode import encode, guess_action
+from engine.generate._encode import encode, encode_clips, guess_action
 from engine.generate._path import PathResult, follow_path, resample_path
 from engine.generate._sampling import Sample, interpolate, interpolation_codes, neighbours, sample
 
@@ -17,6 +17,7 @@ __all__ = [
     "decode_array",
     "decode_batch",
     "encode",
+    "encode_clips",
     "follow_path",
     "guess_action",
     "interpolate",

@@ -54,7 +54,7 @@ def resolve_ends(
     if end is not None:
         given = np.asarray(end, dtype=np.float32)
         if given.ndim == 1:
-            given = np.broadcast_to(given, (n, given.shape[0]))
+            given = np.repeat(given[None], n, axis=0)
         if given.shape not in ((n, 2), (n, 3)) or not np.all(np.isfinite(given)):
             raise ConfigError(f"end must be (3,), (2,) x/z or one row per code, got shape {np.shape(end)}")
         if given.shape[1] == 3:
@@ -76,6 +76,11 @@ def display_lift(loaded: LoadedModel) -> np.ndarray:
     return np.array([0.0, loaded.root_height, 0.0], dtype=np.float32)
 
 
+def _writable(array: np.ndarray, dtype: type) -> np.ndarray:
+    """``array`` as a writable C-contiguous array of ``dtype`` (copied only when needed)."""
+    return np.require(array, dtype=dtype, requirements=("C", "W"))
+
+
 def decode_array(
     loaded: LoadedModel, codes: np.ndarray, actions: np.ndarray, ends: np.ndarray | None
 ) -> tuple[np.ndarray, np.ndarray]:
@@ -86,9 +91,9 @@ def decode_array(
     model = loaded.model
     device = next(model.parameters()).device
     with torch.inference_mode():
-        z = torch.as_tensor(codes, dtype=torch.float32, device=device)
-        a = torch.as_tensor(np.asarray(actions, dtype=np.int64), device=device)
-        e = None if ends is None else torch.as_tensor(ends, dtype=torch.float32, device=device)
+        z = torch.as_tensor(_writable(codes, np.float32), device=device)
+        a = torch.as_tensor(_writable(actions, np.int64), device=device)
+        e = None if ends is None else torch.as_tensor(_writable(ends, np.float32), device=device)
         joints, trajectory = model.decode(z, a, e)
     lift = display_lift(loaded)
     return joints.cpu().numpy() + lift, trajectory.cpu().numpy() + lift

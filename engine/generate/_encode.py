@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Sequence
 
 import numpy as np
 import torch
@@ -37,23 +38,32 @@ def guess_action(loaded: LoadedModel, code: np.ndarray) -> int | None:
     return actions[int(np.argmax(scores))]
 
 
-def encode(loaded: LoadedModel, motion: Motion) -> tuple[np.ndarray, int | None]:
-    """Posterior mean code (D,) of ``motion`` and a guess of its action index (None without a bank).
+def encode_clips(loaded: LoadedModel, motions: Sequence[Motion]) -> tuple[np.ndarray, np.ndarray]:
+    """Posterior mean codes (N, D) and end locations (N, 3) of ``motions``, as the training bank has them.
 
-    The motion is resampled to the model's fps and canonicalised like a training window (frame-0 root
+    Each motion is resampled to the model's fps and canonicalised like a training window (frame-0 root
     at the origin, facing +z); a clip longer than T frames is represented by its centre window, a
-    shorter one is padded with its last frame and masked.
+    shorter one is padded with its last frame and masked. Action labels are not used.
     """
-    _check_skeleton(loaded, motion)
-    # The label only routes the clip through the training preparation; it does not affect the code.
-    unlabelled = dataclasses.replace(motion, action=loaded.action_names[0])
-    prepared = prepare_clips([unlabelled], loaded.action_names, loaded.fps, loaded.window)
-    window = crop_windows(prepared, [0], None)
+    if not motions:
+        raise ConfigError("no motions to encode")
+    for motion in motions:
+        _check_skeleton(loaded, motion)
+    # The label only routes clips through the training preparation; it does not affect the codes.
+    unlabelled = [dataclasses.replace(m, action=loaded.action_names[0]) for m in motions]
+    prepared = prepare_clips(unlabelled, loaded.action_names, loaded.fps, loaded.window)
+    window = crop_windows(prepared, np.arange(len(motions)), None)
     model = loaded.model
     device = next(model.parameters()).device
     with torch.inference_mode():
         lmp = torch.as_tensor(window.lmp, dtype=torch.float32, device=device)
         mask = torch.as_tensor(window.mask, device=device)
         mu, _ = model.encode(lmp, mask)
-    code = mu[0].cpu().numpy().astype(np.float32)
-    return code, guess_action(loaded, code)
+    return mu.cpu().numpy().astype(np.float32), window.ends.astype(np.float32)
+
+
+def encode(loaded: LoadedModel, motion: Motion) -> tuple[np.ndarray, int | None]:
+    """Posterior mean code (D,) of ``motion`` (its centre window, see :func:`encode_clips`) and a guess
+    of its action index (None without a latent bank)."""
+    codes, _ = encode_clips(loaded, [motion])
+    return codes[0], guess_action(loaded, codes[0])

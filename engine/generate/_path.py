@@ -97,9 +97,7 @@ def follow_path(
     if mode is not None:
         members = members[np.asarray(modes.labels) == mode]
     rng = np.random.default_rng(seed)
-    drawn, _ = modes.sample(
-        restarts, rng, strategy="conventional" if mode is None else "mode", mode=mode
-    )
+    drawn, _ = modes.sample(restarts, rng, strategy="conventional" if mode is None else "mode", mode=mode)
     means = modes.means if mode is None else modes.means[mode : mode + 1]
     candidates = np.concatenate([means, bank.codes[members], drawn]).astype(np.float32)
 
@@ -147,7 +145,9 @@ def follow_path(
         best_z[better] = z[better]
     code = best_z[torch.argmin(best_loss)].cpu().numpy().astype(np.float32)
 
-    joints, trajectory = decode_array(loaded, code[None], np.array([index]), None if end is None else end[None])
+    joints, trajectory = decode_array(
+        loaded, code[None], np.array([index]), None if end is None else end[None]
+    )
     error = float(np.linalg.norm(trajectory[0][:, [0, 2]] - target_np, axis=1).mean())
     offset = np.array([path[0, 0], 0.0, path[0, 1]], dtype=np.float32)
     motion = generated_motion(

@@ -121,7 +121,7 @@ def neighbours(
     rng: np.random.Generator | int,
     end: np.ndarray | Sequence[float] | None = None,
 ) -> list[Sample]:
-    """Decode ``n`` codes drawn uniformly from the ball of ``radius`` around ``code`` (variations of one motion).
+    """Decode ``n`` codes drawn uniformly from the ball of ``radius`` around ``code`` (variations of it).
 
     Each neighbour's end location is predicted from its own code unless ``end`` is given.
     """

@@ -53,7 +53,7 @@ def test_decoded_motion_starts_at_display_height(loaded):
     joints, trajectory = decode_array(loaded, codes, loaded.bank.actions[:4], loaded.bank.ends[:4])
     lift = np.array([0.0, loaded.root_height, 0.0], dtype=np.float32)
     np.testing.assert_array_equal(trajectory[:, 0], np.broadcast_to(lift, (4, 3)))
-    # The generated root joint tracks the lifted trajectory (consistency loss), so it is near the floor+height.
+    # The generated root tracks the lifted trajectory (consistency loss), so it starts near root height.
     root = joints[:, :, loaded.skeleton.root]
     assert np.abs(root[:, 0, 1] - loaded.root_height).max() < 0.25
 

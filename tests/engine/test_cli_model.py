@@ -1,0 +1,186 @@
+"""``odmo train | bank | sample | interpolate | encode`` through engine.cli.main."""
+
+from __future__ import annotations
+
+import json
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from engine import cli
+from engine.generate import decode, encode, sample
+from engine.modelio import BANK_FILE, WEIGHTS_FILE, load_model
+from engine.motion.motion import Motion
+
+PATTERN = r"^(?P<action>[a-z]+)_(?P<style>[a-z-]+)_\d+"
+
+
+@pytest.fixture
+def odmo(monkeypatch, tmp_path):
+    """Run ``odmo`` in-process; returns its exit code (the dataset cache goes to a temporary folder)."""
+    monkeypatch.setenv("ODMO_CACHE_DIR", str(tmp_path / "cache"))
+    if "engine.cli.model_commands" not in cli.COMMAND_MODULES:
+        # Until the CLI frame registers the model commands.
+        monkeypatch.setattr(cli, "COMMAND_MODULES", (*cli.COMMAND_MODULES, "engine.cli.model_commands"))
+
+    def run(*argv: object) -> int:
+        return cli.main([str(a) for a in argv])
+
+    return run
+
+
+@pytest.fixture(scope="module")
+def data_dir(tmp_path_factory, procedural_clips) -> Path:
+    """The procedural clips as NPZ files named ``{action}_{style}_{k}.npz``."""
+    folder = tmp_path_factory.mktemp("procedural_npz")
+    for clip in procedural_clips:
+        clip.save(folder / f"{Path(clip.meta['source']).name}.npz")
+    return folder
+
+
+@pytest.fixture
+def model_copy(tiny_model_dir, tmp_path) -> Path:
+    """A copy of the tiny model folder that a test may change."""
+    return Path(shutil.copytree(tiny_model_dir, tmp_path / "model"))
+
+
+def _one_error_line(capsys, *needles: str) -> None:
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1, err
+    for needle in needles:
+        assert needle in err
+
+
+def test_sample_numbers_files_and_matches_the_api(odmo, tiny_model_dir, tmp_path, capsys):
+    out = tmp_path / "walk.npz"
+    assert (
+        odmo("sample", "--model", tiny_model_dir, "--action", "walk", "--n", 3, "--seed", 4, "--out", out)
+        == 0
+    )
+    files = sorted(tmp_path.glob("walk_*.npz"))
+    assert [f.name for f in files] == ["walk_000.npz", "walk_001.npz", "walk_002.npz"]
+    expected = sample(load_model(tiny_model_dir), "walk", 3, 4)
+    for path, s in zip(files, expected, strict=True):
+        motion = Motion.from_file(path)
+        assert motion.action == "walk" and motion.meta["mode"] == s.mode and motion.meta["seed"] == 4
+        np.testing.assert_allclose(motion.joints, s.motion.joints, atol=1e-6)
+    assert str(files[0]) in capsys.readouterr().out
+
+
+def test_sample_one_mode_into_a_folder_with_an_end(odmo, tiny_model_dir, tmp_path):
+    out = tmp_path / "clips"
+    argv = ["sample", "--model", tiny_model_dir, "--action", "wave", "--mode", 0, "--n", 2, "--end", 0.5, 1.5]
+    assert odmo(*argv, "--out", out) == 0
+    motions = [Motion.from_file(p) for p in sorted(out.glob("*.npz"))]
+    assert len(motions) == 2
+    for m in motions:
+        assert m.meta["mode"] == 0
+        assert m.meta["end"][0] == pytest.approx(0.5) and m.meta["end"][2] == pytest.approx(1.5)
+
+
+def test_sample_writes_bvh(odmo, tiny_model_dir, tmp_path):
+    out = tmp_path / "jump.bvh"
+    assert odmo("sample", "--model", tiny_model_dir, "--action", "jump", "--out", out) == 0
+    motion = Motion.from_file(out)
+    loaded = load_model(tiny_model_dir)
+    assert motion.n_frames == loaded.window and motion.skeleton.names == loaded.skeleton.names
+
+
+def test_interpolate_from_a_mode_to_a_bank_code(odmo, tiny_model_dir, tmp_path):
+    loaded = load_model(tiny_model_dir)
+    walk = loaded.action_names.index("walk")
+    i = int(loaded.bank.indices_of(walk)[5])
+    out = tmp_path / "interp"
+    argv = ["interpolate", "--model", tiny_model_dir, "--action", "walk", "--from", "m0", "--to", f"i{i}"]
+    assert odmo(*argv, "--steps", 4, "--method", "slerp", "--out", out) == 0
+    files = sorted(out.glob("*.npz"))
+    assert len(files) == 4
+    first, last = Motion.from_file(files[0]), Motion.from_file(files[-1])
+    np.testing.assert_allclose(
+        first.joints, decode(loaded, loaded.bank.modes[walk].means[0], walk).joints, atol=1e-6
+    )
+    np.testing.assert_allclose(last.joints, decode(loaded, loaded.bank.codes[i], walk).joints, atol=1e-6)
+
+
+def test_encode_prints_code_action_and_mode(odmo, tiny_model_dir, data_dir, capsys):
+    path = sorted(data_dir.glob("wave_*.npz"))[0]
+    assert odmo("encode", "--model", tiny_model_dir, path, "--json") == 0
+    report = json.loads(capsys.readouterr().out)
+    code, guess = encode(load_model(tiny_model_dir), Motion.from_file(path))
+    np.testing.assert_allclose(report["code"], code, atol=1e-5)
+    assert report["action"] == "wave" == load_model(tiny_model_dir).action_names[guess]
+    assert isinstance(report["mode"], int)
+    assert odmo("encode", "--model", tiny_model_dir, path) == 0
+    assert "action guess: wave" in capsys.readouterr().out
+
+
+def test_unknown_action_is_one_line(odmo, tiny_model_dir, tmp_path, capsys):
+    assert odmo("sample", "--model", tiny_model_dir, "--action", "fly", "--out", tmp_path / "x.npz") == 1
+    _one_error_line(capsys, "unknown action 'fly'", "walk")
+    assert not list(tmp_path.iterdir())
+
+
+def test_bad_endpoints_are_one_line(odmo, tiny_model_dir, tmp_path, capsys):
+    loaded = load_model(tiny_model_dir)
+    other = int(loaded.bank.indices_of(loaded.action_names.index("jump"))[0])
+    base = ["interpolate", "--model", tiny_model_dir, "--action", "walk", "--out", tmp_path]
+    assert odmo(*base, "--from", "x3", "--to", "m0") == 1
+    _one_error_line(capsys, "bad endpoint 'x3'")
+    assert odmo(*base, "--from", f"i{other}", "--to", "m0") == 1
+    _one_error_line(capsys, "'jump' code")
+
+
+def test_wrong_skeleton_is_one_line(odmo, tiny_model_dir, procedural_clips, tmp_path, capsys):
+    clip = procedural_clips[0]
+    keep = list(range(clip.n_joints - 2))
+    small = Motion(clip.joints[:, keep], clip.fps, clip.skeleton.subset(keep))
+    path = tmp_path / "small.npz"
+    small.save(path)
+    assert odmo("encode", "--model", tiny_model_dir, path) == 1
+    _one_error_line(capsys, "skeleton does not match", "RightUpLeg")
+
+
+def test_corrupt_weights_are_one_line(odmo, model_copy, tmp_path, capsys):
+    (model_copy / WEIGHTS_FILE).write_bytes(b"\x00not safetensors")
+    assert odmo("sample", "--model", model_copy, "--action", "walk", "--out", tmp_path / "a.npz") == 1
+    _one_error_line(capsys, "corrupt weights")
+
+
+def test_bank_rebuilds_the_training_codes(odmo, model_copy, data_dir, tiny_model_dir):
+    (model_copy / BANK_FILE).unlink()
+    argv = ["bank", "--model", model_copy, "--data", data_dir, "--pattern", PATTERN, "--projections", "pca"]
+    assert odmo(*argv) == 0
+    rebuilt = load_model(model_copy).bank
+    original = load_model(tiny_model_dir).bank
+    assert len(rebuilt.codes) == len(original.codes) and set(rebuilt.projections) == {"pca"}
+    gaps = np.linalg.norm(rebuilt.codes[:, None] - original.codes[None], axis=2).min(axis=1)
+    assert gaps.max() < 1e-4
+    assert {m.get("style") for m in rebuilt.meta} >= {"stroll", "march", "sidestep"}
+
+
+def test_train_writes_a_loadable_model(odmo, data_dir, tmp_path, capsys):
+    sizes = [
+        "enc_hidden=8",
+        "enc_fc=16",
+        "traj_hidden=8",
+        "motion_hidden=8",
+        "batch_size=16",
+        "epoch_size=32",
+    ]
+    settings = [x for s in sizes for x in ("--set", s)]
+    out = tmp_path / "m"
+    argv = ["train", "--data", data_dir, "--pattern", PATTERN, "--out", out, "--epochs", 1, "--device", "cpu"]
+    assert odmo(*argv, *settings, "--projections", "pca") == 0
+    captured = capsys.readouterr()
+    assert "epoch 1/1" in captured.err and "steps/s" in captured.err
+    loaded = load_model(out)
+    assert loaded.action_names == ["jump", "walk", "wave"] and loaded.config.motion_hidden == 8
+    assert loaded.bank is not None and len(loaded.bank.codes) == len(list(data_dir.glob("*.npz")))
+
+
+def test_train_rejects_unknown_settings(odmo, data_dir, tmp_path, capsys):
+    argv = ["train", "--data", data_dir, "--pattern", PATTERN, "--out", tmp_path / "m", "--set", "depth=3"]
+    assert odmo(*argv) == 1
+    _one_error_line(capsys, "depth")
