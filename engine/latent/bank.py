@@ -58,8 +58,7 @@ class LatentBank:
         return np.flatnonzero(self.actions == int(action))
 
     def end_location(self, codes: np.ndarray, action: int, k: int = 8) -> np.ndarray:
-        """End locations (M, 3) for codes (M, D): a continuous distance-weighted blend of the k nearest codes
-        of that action (a bank code gets exactly its own end)."""
+        """End locations (M, 3) of codes (M, D): continuous blend of the action's k nearest codes' ends."""
         idx = self.indices_of(action)
         if len(idx) == 0:
             raise ConfigError(f"action {self.action_names[int(action)]!r} has no codes in the bank")

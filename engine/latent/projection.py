@@ -57,6 +57,7 @@ class Projection:
         if not np.all(np.isfinite(x)):
             raise ConfigError("codes contain NaN or infinite values")
         self._set_fitted(x, self._fit(x.astype(np.float64)))
+        log.info("fitted the %s map of %d codes", self.name, len(x))
         return self
 
     def _set_fitted(self, codes: np.ndarray, embedding: np.ndarray) -> None:
