@@ -12,6 +12,8 @@ from engine.model.config import OdmoConfig
 from engine.model.losses import contrastive_loss, masked_mse, odmo_losses, prior_loss
 from engine.model.odmo import OdmoModel
 
+pytestmark = pytest.mark.usefixtures("torch_single_thread")
+
 J, T = 5, 12
 
 

@@ -16,6 +16,8 @@ from engine.model.odmo import OdmoModel
 from engine.modelio import load_model, resolve_device, save_model
 from tests.fixtures.procedural import PROCEDURAL_ACTIONS, procedural_skeleton
 
+pytestmark = pytest.mark.usefixtures("torch_single_thread")
+
 
 def _saved(folder: Path) -> OdmoModel:
     cfg = OdmoConfig(n_actions=3, n_joints=11, window=16, enc_fc=32, traj_hidden=16, motion_hidden=16)

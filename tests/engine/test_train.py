@@ -18,6 +18,8 @@ from engine.train.pairs import PairSampler, split_clips
 from tests.fixtures.procedural import PROCEDURAL_ACTIONS
 from tests.fixtures.tiny_model import single_thread, tiny_config
 
+pytestmark = pytest.mark.usefixtures("torch_single_thread")
+
 
 def test_short_training_lowers_every_loss_term(tiny_model_dir: Path) -> None:
     with open(tiny_model_dir / "train_log.csv", newline="") as handle:

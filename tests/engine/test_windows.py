@@ -12,6 +12,8 @@ from engine.motion.skeleton import Skeleton
 from engine.train.windows import canonicalize, crop_windows, left_right_pairs, prepare_clips
 from tests.fixtures.procedural import PROCEDURAL_ACTIONS, procedural_skeleton
 
+pytestmark = pytest.mark.usefixtures("torch_single_thread")
+
 
 def _clip(frames: int, action: str = "walk", seed: int = 0) -> Motion:
     rng = np.random.default_rng(seed)
