@@ -1,0 +1,338 @@
+"""Compare ODMO, its ablations and the Action2Motion baseline on the fixed held-out split → docs/RESULTS.md.
+
+    python bench/compare.py --data "$(../shared/data/unpack)" [--epochs 300] [--reuse]
+
+Every model trains on the training part of ``bench.heldout.heldout_split`` with the same windows, seed and
+budget (epochs × windows per epoch) and is evaluated on the held-out part with the same classifier and the
+same real sets (``engine.metrics.evaluate`` for ODMO, ``engine.metrics.a2m_eval`` for A2M). Models live in
+``runs/compare/<name>/``; ``--reuse`` keeps finished ones (unfinished ones resume). The ODMO row reuses the
+default model (resources/models/bandai2-odmo) when its data, seed, config and epochs match.
+"""
+
+from __future__ import annotations
+
+import argparse
+import datetime as dt
+import json
+import logging
+import sys
+import time
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import torch
+from tqdm import tqdm
+
+if __package__ in (None, ""):
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from bench._report import machine
+from bench.heldout import HELDOUT_FRACTION, SPLIT_SEED, heldout_split
+from engine.a2m_io import LoadedA2m, load_a2m
+from engine.errors import ModelFormatError
+from engine.fileio import atomic_write_text
+from engine.metrics.a2m_eval import evaluate_a2m
+from engine.metrics.classifier import Classifier, load_classifier, train_classifier
+from engine.metrics.evaluate import evaluate
+from engine.model.a2m import A2mConfig
+from engine.model.config import OdmoConfig
+from engine.modelio import META_FILE, LoadedModel, load_model
+from engine.motion.datasets import load_folder
+from engine.motion.motion import Motion
+from engine.train.a2m_loop import train_a2m
+from engine.train.loop import TrainProgress, train
+from engine.train.windows import prepare_clips
+
+log = logging.getLogger("bench.compare")
+
+REPO = Path(__file__).resolve().parents[1]
+RESULTS = REPO / "docs" / "RESULTS.md"
+DEFAULT_MODEL = REPO / "resources" / "models" / "bandai2-odmo"
+CLASSIFIERS = (REPO / "runs" / "bandai2-odmo" / "classifier", DEFAULT_MODEL / "classifier")
+SPEED_BATCH = 64
+WINDOW, FPS = 60, 20.0  # the OdmoConfig / A2mConfig defaults every model here uses
+
+ROWS = {
+    "odmo": "ODMO (mode-preserving sampling)",
+    "odmo_conv": "ODMO, conventional sampling",
+    "odmo_no_contrastive": "ODMO w/o contrastive (plain VAE)",
+    "odmo_no_end": "ODMO w/o end location",
+    "a2m": "Action2Motion (joint positions)",
+}
+ODMO_VARIANTS: dict[str, dict[str, Any]] = {
+    "odmo": {},
+    "odmo_no_contrastive": {"w_contrastive": 0.0},
+    "odmo_no_end": {"use_end_location": False},
+}
+# (header, metric key, decimals); "→" means closer to the real row is better.
+COLUMNS = (
+    ("Acc ↑", "accuracy", 3),
+    ("FID ↓", "fid", 3),
+    ("Diversity →", "diversity", 3),
+    ("Multimodality →", "multimodality", 3),
+    ("n-APD →", "n_apd", 3),
+    ("Mode homog. (%)", "mode_homogeneity", 2),
+    ("Style NMI", "style_nmi", 3),
+    ("Style ARI", "style_ari", 3),
+    ("End error (m)", "end_error_m", 3),
+    ("Recon. error (m)", "reconstruction_error_m", 4),
+)
+
+
+def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
+    """Command-line options."""
+    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--data", required=True, type=Path)
+    p.add_argument("--epochs", type=int, default=300, help="epochs of 2,048 windows, every model")
+    p.add_argument("--reuse", action="store_true", help="keep finished models in --runs")
+    p.add_argument("--runs", type=Path, default=REPO / "runs" / "compare")
+    p.add_argument("--results", type=Path, default=RESULTS)
+    p.add_argument("--classifier", type=Path, help="evaluation classifier folder (default: the shipped one)")
+    p.add_argument("--classifier-epochs", type=int, default=40)
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--repeats", type=int, default=10)
+    p.add_argument("--n-per-action", type=int, default=50)
+    p.add_argument("--device", default="auto")
+    p.add_argument("--threads", type=int, default=1, help="torch threads")
+    return p.parse_args(argv)
+
+
+def _cell(block: dict[str, dict[str, float]], key: str, decimals: int) -> str:
+    """``mean ± ci95`` of ``key`` or n/a."""
+    value = block.get(key)
+    if value is None or not np.isfinite(value["mean"]):
+        return "n/a"
+    return f"{value['mean']:.{decimals}f} ± {value['ci95']:.{decimals}f}"
+
+
+def results_markdown(
+    real: dict[str, dict[str, float]], entries: Sequence[dict[str, Any]], info: dict[str, str]
+) -> str:
+    """RESULTS.md: the table (real row, then one row per entry) and the bullet list ``info``.
+
+    ``real`` and each entry's ``generated`` are ``{metric: {"mean", "ci95"}}`` blocks; an entry has ``row``
+    (a ROWS key) and an optional ``speed`` (decoded motions/s at batch 64).
+    """
+    headers = [h for h, _, _ in COLUMNS] + ["Decode (motions/s)"]
+    lines = [
+        "# Results: ODMO, ablations and the Action2Motion baseline",
+        "",
+        "This file is generated by `bench/compare.py`; do not edit it by hand. Values are mean ± 95 % "
+        "interval over the evaluation repeats; → means closer to the real row is better. n/a: the metric "
+        "does not apply (A2M has no code space, modes or end location; the real row generates nothing).",
+        "",
+        "| Model | " + " | ".join(headers) + " |",
+        "|---|" + "|".join("---" for _ in headers) + "|",
+    ]
+    rows = [("Real motions", real, None)]
+    rows += [(ROWS[e["row"]], e["generated"], e.get("speed")) for e in entries]
+    for name, block, speed in rows:
+        cells = [_cell(block, key, d) for _, key, d in COLUMNS]
+        if name == "Real motions":
+            cells[[k for _, k, _ in COLUMNS].index("reconstruction_error_m")] = "n/a"
+        cells.append("n/a" if speed is None else f"{speed:.0f}")
+        lines.append(f"| {name} | " + " | ".join(cells) + " |")
+    lines += ["", "## How it was made", ""]
+    lines += [f"- **{key}**: {value}" for key, value in info.items()]
+    return "\n".join(lines) + "\n"
+
+
+def _choose_classifier(
+    args: argparse.Namespace, train_clips: Sequence[Motion], names: list[str], skeleton_names: tuple[str, ...]
+) -> Classifier:
+    """The given classifier, else the shipped one if it fits the data, else one trained on the train split."""
+    candidates = [args.classifier] if args.classifier else list(CLASSIFIERS)
+    for folder in candidates:
+        if not (folder / "classifier.json").is_file():
+            continue
+        clf = load_classifier(folder)
+        fits = clf.config.window == WINDOW and clf.config.fps == FPS
+        if fits and set(names) <= set(clf.action_names) and clf.skeleton_names == skeleton_names:
+            return clf
+        log.warning("%s does not fit this data set; not used", folder)
+    out = args.runs / "classifier"
+    if (out / "classifier.json").is_file() and args.reuse:
+        return load_classifier(out)
+    return train_classifier(
+        train_clips, names, out, epochs=args.classifier_epochs, seed=args.seed, window=WINDOW, fps=FPS
+    )
+
+
+def _finished(folder: Path, epochs: int) -> bool:
+    """Whether ``folder`` holds a model trained for ``epochs`` epochs."""
+    meta = folder / META_FILE
+    return meta.is_file() and json.loads(meta.read_text()).get("provenance", {}).get("epochs") == epochs
+
+
+def _default_matches(config: OdmoConfig, fingerprint: str, seed: int) -> bool:
+    """Whether the shipped default model was trained exactly like the ODMO row would be."""
+    if not _finished(DEFAULT_MODEL, config.epochs):
+        return False
+    meta = json.loads((DEFAULT_MODEL / META_FILE).read_text())
+    prov = meta["provenance"]
+    return (
+        meta["config"] == config.to_dict()
+        and prov["data_fingerprint"] == fingerprint
+        and prov["seed"] == seed
+    )
+
+
+def _bar(name: str, epochs: int) -> tuple[tqdm, Callable[[TrainProgress], None]]:
+    """A tqdm bar over epochs and the progress callback that moves it."""
+    bar = tqdm(total=epochs, desc=name, unit="epoch")
+
+    def show(p: TrainProgress) -> None:
+        if p.stage == "train" and p.step == p.steps:
+            bar.n = p.epoch
+            bar.set_postfix({k: f"{v:.3g}" for k, v in p.losses.items()} | {"w/s": f"{p.windows_per_s:.0f}"})
+            bar.refresh()
+
+    return bar, show
+
+
+def _speed(decode: Callable[[], object], repeats: int = 5) -> float:
+    """Motions per second of ``decode`` (a batch of SPEED_BATCH), median of ``repeats`` after a warm-up."""
+    decode()
+    times = []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        decode()
+        times.append(time.perf_counter() - t0)
+    return SPEED_BATCH / float(np.median(times))
+
+
+def odmo_speed(loaded: LoadedModel) -> float:
+    """Decoded ODMO motions/s at batch 64 (codes and end locations of the bank)."""
+    bank = loaded.bank
+    idx = np.arange(SPEED_BATCH) % len(bank.codes)
+    z = torch.from_numpy(np.asarray(bank.codes[idx], np.float32))
+    actions = torch.from_numpy(np.asarray(bank.actions[idx], np.int64))
+    ends = (
+        torch.from_numpy(np.asarray(bank.ends[idx], np.float32)) if loaded.config.use_end_location else None
+    )
+
+    def decode() -> None:
+        with torch.inference_mode():
+            loaded.model.decode(z, actions, ends)
+
+    return _speed(decode)
+
+
+def a2m_speed(loaded: LoadedA2m) -> float:
+    """A2M motions/s at batch 64 (prior sampling, seed 0)."""
+    actions = torch.arange(SPEED_BATCH) % loaded.config.n_actions
+    generator = torch.Generator().manual_seed(0)
+
+    def decode() -> None:
+        with torch.inference_mode():
+            loaded.model.sample(actions, generator)
+
+    return _speed(decode)
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Train or reuse every model, evaluate them all, write RESULTS.md."""
+    args = parse_args(argv)
+    logging.basicConfig(level=logging.INFO, format="%(name)s: %(message)s")
+    torch.set_num_threads(args.threads)
+    started = time.time()
+    dataset = load_folder(args.data)
+    train_clips, test_clips = heldout_split(dataset.clips)
+    names = list(dataset.action_names)
+    skeleton = dataset.skeleton
+    fingerprint = prepare_clips(train_clips, names, FPS, WINDOW).fingerprint()
+    classifier = _choose_classifier(args, train_clips, names, tuple(skeleton.names))
+    evaluation = {"repeats": args.repeats, "n_per_action": args.n_per_action, "seed": args.seed}
+
+    folders: dict[str, Path] = {}
+    notes: dict[str, str] = {}
+    for key, changes in ODMO_VARIANTS.items():
+        config = OdmoConfig(n_actions=len(names), n_joints=skeleton.n_joints, epochs=args.epochs, **changes)
+        folder = args.runs / key
+        if key == "odmo" and _default_matches(config, fingerprint, args.seed):
+            folder, notes[key] = DEFAULT_MODEL, f"reused the default model {DEFAULT_MODEL.relative_to(REPO)}"
+        elif args.reuse and _finished(folder, args.epochs):
+            notes[key] = f"reused {folder}"
+        else:
+            bar, show = _bar(key, config.epochs)
+            train(
+                train_clips, names, folder, config, seed=args.seed, device=args.device, resume=args.reuse,
+                progress=show, bank_projections=("pca",),
+            )  # fmt: skip
+            bar.close()
+            notes[key] = f"trained into {folder}"
+        folders[key] = folder
+    a2m_config = A2mConfig(n_actions=len(names), n_joints=skeleton.n_joints, epochs=args.epochs)
+    folders["a2m"] = args.runs / "a2m"
+    if args.reuse and _finished(folders["a2m"], args.epochs):
+        notes["a2m"] = f"reused {folders['a2m']}"
+    else:
+        bar, show = _bar("a2m", a2m_config.epochs)
+        train_a2m(
+            train_clips, names, folders["a2m"], a2m_config, seed=args.seed, device=args.device,
+            resume=args.reuse, progress=show,
+        )  # fmt: skip
+        bar.close()
+        notes["a2m"] = f"trained into {folders['a2m']}"
+
+    entries: list[dict[str, Any]] = []
+    real: dict[str, dict[str, float]] = {}
+    for row, key, strategy in (
+        ("odmo", "odmo", "mode_preserving"),
+        ("odmo_conv", "odmo", "conventional"),
+        ("odmo_no_contrastive", "odmo_no_contrastive", "mode_preserving"),
+        ("odmo_no_end", "odmo_no_end", "mode_preserving"),
+    ):
+        loaded = load_model(folders[key], device="cpu")
+        report = evaluate(loaded, test_clips, classifier, strategy=strategy, **evaluation)
+        atomic_write_text(args.runs / f"eval_{row}.json", json.dumps(report, indent=2))
+        real = real or report["real"]
+        if report["real"] != real:
+            raise ModelFormatError(f"{row}: the real sets differ between evaluations")
+        entries.append({"row": row, "generated": report["generated"], "speed": odmo_speed(loaded)})
+        log.info("%s evaluated", row)
+    a2m = load_a2m(folders["a2m"], device="cpu")
+    report = evaluate_a2m(a2m, test_clips, classifier, **evaluation)
+    atomic_write_text(args.runs / "eval_a2m.json", json.dumps(report, indent=2))
+    if report["real"] != real:
+        raise ModelFormatError("a2m: the real sets differ from the ODMO evaluations")
+    entries.append({"row": "a2m", "generated": report["generated"], "speed": a2m_speed(a2m)})
+
+    windows = f"{a2m_config.epoch_size:,}"
+    info = {
+        "Data": f"`{args.data}`: {len(dataset.clips)} clips, {len(names)} actions ({', '.join(names)}), "
+        f"{skeleton.n_joints} joints, windows of 60 frames at 20 fps",
+        "Split": f"`bench/heldout.py`: {HELDOUT_FRACTION:.0%} of the clips of every action × style held out "
+        f"(seed {SPLIT_SEED}): {len(train_clips)} train, {len(test_clips)} held-out; every model also keeps "
+        "10 % of its train clips for validation (seed of the model)",
+        "Budget": f"{args.epochs} epochs × {windows} class-balanced windows for every model "
+        f"(ODMO: batch 128 = 64 contrastive pairs, Adam 1e-3; A2M: batch {a2m_config.batch_size}, "
+        f"Adam {a2m_config.lr:g}, weight decay {a2m_config.weight_decay:g}, λ_KL {a2m_config.kl_weight:g}, "
+        f"teacher forcing p {a2m_config.tf_rate:g} per batch)",
+        "Models": "; ".join(f"{ROWS[k]}: {v}" for k, v in notes.items()),
+        "Seeds": f"training seed {args.seed}; evaluation seed {args.seed} "
+        f"({args.repeats} repeats × {args.n_per_action} motions per action, repeat r uses rng [seed, r])",
+        "Classifier": f"`{classifier.path}` (held-out accuracy {classifier.test_accuracy:.3f}); the same "
+        "classifier and real sets for every row",
+        "Reconstruction": "ODMO: encode → decode with the true action and end location; A2M: posterior means "
+        "z_1..z_T of the real window, decoded free-running (A2M: a 30-d code per frame; ODMO: one 20-d code)",
+        "Decode speed": f"motions/s at batch {SPEED_BATCH}, median of 5 after a warm-up, CPU, "
+        f"{torch.get_num_threads()} torch thread(s); ODMO: one decode of bank codes; A2M: prior sampling",
+        "Machine": machine(),
+        "Date": dt.datetime.now(dt.UTC).strftime("%Y-%m-%d %H:%M UTC"),
+        "Wall time": f"{(time.time() - started) / 60:.1f} min",
+        "Command": "`"
+        + " ".join(["python", "bench/compare.py", *(argv if argv is not None else sys.argv[1:])])
+        + "`",
+        "Reproduce": f"`python bench/compare.py --data DATA --epochs {args.epochs} --repeats {args.repeats} "
+        f"--n-per-action {args.n_per_action} --seed {args.seed}` (add `--reuse` to keep trained models)",
+    }
+    atomic_write_text(args.results, results_markdown(real, entries, info))
+    print(f"wrote {args.results}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

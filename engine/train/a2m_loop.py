@@ -1,0 +1,210 @@
+"""Training loop of the Action2Motion baseline: ODMO's windows, split and budget; A2M's losses."""
+
+from __future__ import annotations
+
+import csv
+import io
+import logging
+import math
+import platform
+import time
+from collections.abc import Callable, Sequence
+from datetime import UTC, datetime
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from engine import __version__
+from engine.a2m_io import save_a2m
+from engine.errors import CancelledError, ConfigError, ModelFormatError
+from engine.fileio import atomic_write_text
+from engine.model.a2m import A2M_LOSS_TERMS, A2mConfig, A2mModel, a2m_losses
+from engine.modelio import resolve_device
+from engine.motion.motion import Motion
+from engine.train.checkpoint import checkpoint_path, load_checkpoint, save_checkpoint
+from engine.train.loop import LOG_FILE, TrainProgress, TrainResult
+from engine.train.pairs import PairSampler, split_clips
+from engine.train.windows import WindowBatch, crop_windows, prepare_clips
+
+log = logging.getLogger(__name__)
+
+_TERMS = (*A2M_LOSS_TERMS, "total")
+
+
+def _losses(
+    model: A2mModel,
+    batch: WindowBatch,
+    device: torch.device,
+    *,
+    teacher: bool,
+    generator: torch.Generator | None,
+) -> dict[str, torch.Tensor]:
+    """Loss terms of one window batch (z sampled with ``generator``, posterior means without)."""
+    joints = torch.from_numpy(np.ascontiguousarray(batch.joints, np.float32)).to(device)
+    mask = torch.from_numpy(np.asarray(batch.mask, bool)).to(device)
+    actions = torch.from_numpy(np.asarray(batch.actions, np.int64)).to(device)
+    out = model(joints, actions, teacher=teacher, generator=generator)
+    return a2m_losses(model.config, joints, mask, out)
+
+
+def _write_log(path: Path, rows: list[dict[str, float]]) -> None:
+    """The per-epoch CSV log (atomically)."""
+    buffer = io.StringIO()
+    writer = csv.DictWriter(buffer, fieldnames=list(rows[0]), lineterminator="\n")
+    writer.writeheader()
+    writer.writerows(rows)
+    atomic_write_text(path, buffer.getvalue())
+
+
+def train_a2m(
+    clips: Sequence[Motion],
+    action_names: list[str],
+    out_dir: Path,
+    config: A2mConfig,
+    *,
+    seed: int = 0,
+    device: str = "auto",
+    resume: bool = False,
+    val_fraction: float = 0.1,
+    progress: Callable[[TrainProgress], None] | None = None,
+    cancel: Callable[[], bool] | None = None,
+    checkpoint_every: int = 10,
+) -> TrainResult:
+    """Train an A2M baseline on ``clips`` and write its model folder ``out_dir``.
+
+    Same windows, clip split (``val_fraction``, ``seed``) and budget (``epochs`` × ``epoch_size``
+    class-balanced windows) as ``engine.train.loop.train``. Each batch is teacher-forced with probability
+    ``config.tf_rate``, else the generator runs on its own outputs. The folder gets model.safetensors,
+    model.json, train_log.csv and checkpoints/last.pt; ``resume`` and ``cancel`` behave as in ``train``.
+    """
+    out = Path(out_dir)
+    dev = resolve_device(device)
+    prepared = prepare_clips(clips, action_names, config.fps, config.window)
+    if config.n_actions != len(prepared.action_names) or config.n_joints != prepared.skeleton.n_joints:
+        raise ConfigError(
+            f"config has {config.n_actions} actions and {config.n_joints} joints, data has "
+            f"{len(prepared.action_names)} and {prepared.skeleton.n_joints}"
+        )
+    fingerprint = prepared.fingerprint()
+    train_idx, val_idx = split_clips(prepared.actions, val_fraction, seed)
+    sampler = PairSampler(prepared.actions, train_idx)
+    validation = crop_windows(prepared, val_idx, None) if len(val_idx) else None
+
+    model = A2mModel(config, seed=seed).to(dev)
+    optimizer = torch.optim.Adam(model.parameters(), lr=config.lr, weight_decay=config.weight_decay)
+    rng = np.random.default_rng(seed)
+    tgen = torch.Generator(dev).manual_seed(seed)
+    rows: list[dict[str, float]] = []
+    start_epoch, train_seconds = 0, 0.0
+    ckpt = checkpoint_path(out)
+    identity = {
+        "config": {k: v for k, v in config.to_dict().items() if k != "epochs"},
+        "fingerprint": fingerprint,
+        "seed": seed,
+        "val_fraction": val_fraction,
+    }
+    if resume and ckpt.exists():
+        start_epoch, extra = load_checkpoint(ckpt, model=model, optimizer=optimizer, rng=rng, torch_rng=tgen)
+        if extra.get("identity") != identity:
+            raise ModelFormatError(f"{ckpt}: checkpoint is from a different config, seed or data set")
+        rows, train_seconds = list(extra["log"]), float(extra["train_seconds"])
+        log.info("resuming %s after epoch %d", out, start_epoch)
+
+    steps = max(1, math.ceil(config.epoch_size / config.batch_size))
+    train_losses: dict[str, float] = {}
+    val_losses: dict[str, float] | None = None
+    rate = 0.0
+    for epoch in range(start_epoch, config.epochs):
+        model.train()
+        sums = dict.fromkeys(_TERMS, 0.0)
+        n_teacher = 0
+        t0 = time.perf_counter()
+        for step in range(steps):
+            if cancel is not None and cancel():
+                raise CancelledError(f"training cancelled in epoch {epoch + 1}; resume from {ckpt}")
+            anchors, _ = sampler.anchors(config.batch_size, rng)
+            batch = crop_windows(prepared, anchors, rng)
+            teacher = bool(rng.random() < config.tf_rate)
+            n_teacher += teacher
+            terms = _losses(model, batch, dev, teacher=teacher, generator=tgen)
+            optimizer.zero_grad(set_to_none=True)
+            terms["total"].backward()
+            torch.nn.utils.clip_grad_norm_(model.parameters(), config.grad_clip)
+            optimizer.step()
+            for k in _TERMS:
+                sums[k] += float(terms[k].detach())
+            rate = (step + 1) / (time.perf_counter() - t0)
+            if progress is not None:
+                left = (steps - step - 1) + (config.epochs - epoch - 1) * steps
+                progress(
+                    TrainProgress(
+                        stage="train",
+                        epoch=epoch + 1,
+                        epochs=config.epochs,
+                        step=step + 1,
+                        steps=steps,
+                        losses={k: v / (step + 1) for k, v in sums.items()},
+                        val_losses=val_losses,
+                        windows_per_s=rate * config.batch_size,
+                        steps_per_s=rate,
+                        eta_s=left / rate,
+                        fraction=(epoch * steps + step + 1) / (config.epochs * steps),
+                    )
+                )
+        epoch_seconds = time.perf_counter() - t0
+        train_seconds += epoch_seconds
+        train_losses = {k: v / steps for k, v in sums.items()}
+        if validation is not None:
+            model.eval()
+            with torch.no_grad():
+                val_terms = _losses(model, validation, dev, teacher=False, generator=None)
+            val_losses = {k: float(v) for k, v in val_terms.items()}
+        row = {"epoch": epoch + 1, "teacher_batches": n_teacher / steps}
+        row |= {f"train_{k}": v for k, v in train_losses.items()}
+        row |= {f"val_{k}": (val_losses or {}).get(k, float("nan")) for k in _TERMS}
+        row |= {"seconds": epoch_seconds, "windows_per_s": steps * config.batch_size / epoch_seconds}
+        rows.append(row)
+        if (epoch + 1) % checkpoint_every == 0 or epoch + 1 == config.epochs:
+            _write_log(out / LOG_FILE, rows)
+            extra = {"identity": identity, "log": rows, "train_seconds": train_seconds}
+            save_checkpoint(
+                ckpt, epoch=epoch + 1, model=model, optimizer=optimizer, rng=rng, torch_rng=tgen, extra=extra
+            )
+
+    if rows:
+        _write_log(out / LOG_FILE, rows)
+    model.eval()
+    provenance = {
+        "arch": "a2m",
+        "data_fingerprint": fingerprint,
+        "n_clips": prepared.n_clips,
+        "n_train": len(train_idx),
+        "n_val": len(val_idx),
+        "seed": seed,
+        "epochs": config.epochs,
+        "windows_seen": config.epochs * steps * config.batch_size,
+        "train_seconds": round(train_seconds, 3),
+        "device": str(dev),
+        "created": datetime.now(UTC).isoformat(timespec="seconds"),
+        "train_sources": [prepared.sources[i] for i in train_idx],
+        "versions": {
+            "odmo_explorer": __version__,
+            "torch": torch.__version__,
+            "numpy": np.__version__,
+            "python": platform.python_version(),
+        },
+    }
+    root = prepared.skeleton.root
+    root_height = float(np.median(np.concatenate([j[:, root, 1] for j in prepared.joints])))
+    save_a2m(out, model, prepared.skeleton, prepared.action_names, provenance, root_height)
+    return TrainResult(
+        model_dir=out,
+        epochs=config.epochs,
+        train_losses=train_losses,
+        val_losses=val_losses,
+        windows_per_s=rate * config.batch_size,
+        train_seconds=train_seconds,
+        n_train=len(train_idx),
+        n_val=len(val_idx),
+    )

@@ -1,0 +1,223 @@
+"""Action2Motion baseline: training, prior sampling, folder I/O, evaluation and the comparison table."""
+
+from __future__ import annotations
+
+import csv
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+
+from bench.compare import ROWS, results_markdown
+from engine.a2m_io import generate_a2m, load_a2m, save_a2m
+from engine.errors import ConfigError, ModelFormatError
+from engine.metrics.a2m_eval import NOT_APPLICABLE, evaluate_a2m
+from engine.metrics.classifier import Classifier, train_classifier
+from engine.metrics.evaluate import evaluate
+from engine.model.a2m import A2mConfig, A2mModel
+from engine.modelio import load_model
+from engine.motion.motion import Motion
+from engine.train.a2m_loop import train_a2m
+from tests.fixtures.procedural import PROCEDURAL_ACTIONS
+from tests.fixtures.tiny_model import single_thread
+
+
+def tiny_a2m_config(**changes: object) -> A2mConfig:
+    """Small sizes and a short, high-rate schedule for tests."""
+    base = {
+        "n_actions": len(PROCEDURAL_ACTIONS),
+        "n_joints": 11,
+        "hidden": 32,
+        "latent_dim": 8,
+        "batch_size": 16,
+        "epoch_size": 64,
+        "epochs": 8,
+        "lr": 3e-3,
+    }
+    return A2mConfig(**(base | changes))
+
+
+@pytest.fixture(scope="module")
+def a2m_dir(tmp_path_factory: pytest.TempPathFactory, procedural_clips: list[Motion]) -> Path:
+    """Folder of a tiny A2M trained on the procedural clips."""
+    out = tmp_path_factory.mktemp("a2m")
+    with single_thread():
+        train_a2m(procedural_clips, PROCEDURAL_ACTIONS, out, tiny_a2m_config(), seed=0, device="cpu")
+    return out
+
+
+@pytest.fixture(scope="module")
+def classifier(tmp_path_factory: pytest.TempPathFactory, procedural_clips: list[Motion]) -> Classifier:
+    """A briefly trained evaluation classifier."""
+    out = tmp_path_factory.mktemp("a2m_classifier")
+    with single_thread():
+        return train_classifier(procedural_clips, PROCEDURAL_ACTIONS, out, epochs=2, batch_size=16, seed=0)
+
+
+def test_training_lowers_the_loss(a2m_dir: Path) -> None:
+    rows = list(csv.DictReader((a2m_dir / "train_log.csv").read_text().splitlines()))
+    assert len(rows) == 8
+    first, last = rows[0], rows[-1]
+    assert float(last["train_recon"]) < 0.5 * float(first["train_recon"])
+    assert float(last["val_recon"]) < 0.5 * float(first["val_recon"])
+    meta = json.loads((a2m_dir / "model.json").read_text())
+    assert meta["arch"] == "a2m"
+    assert meta["provenance"]["windows_seen"] == 8 * 64
+
+
+def test_teacher_forced_pass_matches_a_step_by_step_loop(torch_single_thread: None) -> None:
+    model = A2mModel(tiny_a2m_config(), seed=3).eval()
+    gen = torch.Generator().manual_seed(0)
+    joints = torch.randn(2, 60, 11, 3, generator=gen)
+    actions = torch.tensor([0, 2])
+    with torch.no_grad():
+        out = model(joints, actions, teacher=True, generator=None)
+        cond = model._condition(actions)
+        x = joints.reshape(2, 60, -1)
+        h_q = h_p = h_g = None
+        prev = torch.zeros(2, 1, 33)
+        for t in range(60):
+            c = cond[:, t : t + 1]
+            mu_q, _, h_q = model.posterior(torch.cat([x[:, t : t + 1], c], 2), h_q)
+            mu_p, _, h_p = model.prior(torch.cat([prev, c], 2), h_p)
+            pose, h_g = model.generator(torch.cat([prev, c, mu_q], 2), h_g)
+            torch.testing.assert_close(out.mu_p[:, t : t + 1], mu_p, atol=1e-5, rtol=1e-5)
+            torch.testing.assert_close(out.joints[:, t].reshape(2, 1, -1), pose, atol=1e-5, rtol=1e-5)
+            prev = x[:, t : t + 1]
+
+
+def test_generation_is_deterministic_per_seed(a2m_dir: Path, torch_single_thread: None) -> None:
+    loaded = load_a2m(a2m_dir)
+    first = generate_a2m(loaded, "wave", 3, 7)
+    assert first.shape == (3, 60, 11, 3) and first.dtype == np.float32
+    assert np.all(np.isfinite(first))
+    np.testing.assert_array_equal(first, generate_a2m(loaded, 1, 3, torch.Generator().manual_seed(7)))
+    assert not np.allclose(first, generate_a2m(loaded, "wave", 3, 8))
+    assert not np.allclose(first[0], first[1])  # the prior is sampled, not its mean
+    with pytest.raises(ConfigError):
+        generate_a2m(loaded, "dance", 1, 0)
+    with pytest.raises(ConfigError):
+        generate_a2m(loaded, 3, 1, 0)
+
+
+def test_save_load_generate_identical(a2m_dir: Path, tmp_path: Path, torch_single_thread: None) -> None:
+    loaded = load_a2m(a2m_dir)
+    save_a2m(tmp_path, loaded.model, loaded.skeleton, loaded.action_names, loaded.provenance, 0.9)
+    again = load_a2m(tmp_path)
+    assert again.config == loaded.config and again.action_names == loaded.action_names
+    np.testing.assert_array_equal(generate_a2m(loaded, 2, 4, 11), generate_a2m(again, 2, 4, 11))
+
+
+def _copy(src: Path, dst: Path) -> Path:
+    dst.mkdir()
+    for name in ("model.json", "model.safetensors"):
+        (dst / name).write_bytes((src / name).read_bytes())
+    return dst
+
+
+def test_loading_is_strict(a2m_dir: Path, tiny_model_dir: Path, tmp_path: Path) -> None:
+    with pytest.raises(ModelFormatError, match="not 'a2m'"):
+        load_a2m(tiny_model_dir)  # an ODMO folder
+    with pytest.raises(ModelFormatError):
+        load_model(a2m_dir)  # and the ODMO loader refuses an A2M folder
+    missing = _copy(a2m_dir, tmp_path / "missing")
+    (missing / "model.safetensors").unlink()
+    with pytest.raises(ModelFormatError, match="missing weights"):
+        load_a2m(missing)
+    corrupt = _copy(a2m_dir, tmp_path / "corrupt")
+    (corrupt / "model.safetensors").write_bytes(b"\x00" * 40)
+    with pytest.raises(ModelFormatError, match="corrupt"):
+        load_a2m(corrupt)
+    for name, change in {
+        "shape": lambda m: m["config"].update(hidden=48),
+        "newer": lambda m: m.update(format_version=99),
+        "unknown": lambda m: m["config"].update(dropout=0.1),
+        "actions": lambda m: m.update(action_names=["walk"]),
+        "arch": lambda m: m.update(arch="odmo"),
+    }.items():
+        folder = _copy(a2m_dir, tmp_path / name)
+        meta = json.loads((folder / "model.json").read_text())
+        change(meta)
+        (folder / "model.json").write_text(json.dumps(meta))
+        with pytest.raises(ModelFormatError):
+            load_a2m(folder)
+    (tmp_path / "garbled").mkdir()
+    (tmp_path / "garbled" / "model.json").write_text("{not json")
+    with pytest.raises(ModelFormatError, match="unreadable"):
+        load_a2m(tmp_path / "garbled")
+
+
+def test_resume_continues_exactly(
+    procedural_clips: list[Motion], tmp_path: Path, torch_single_thread: None
+) -> None:
+    config = tiny_a2m_config(epochs=2, epoch_size=32)
+    straight = train_a2m(procedural_clips, PROCEDURAL_ACTIONS, tmp_path / "a", config, device="cpu")
+    train_a2m(procedural_clips, PROCEDURAL_ACTIONS, tmp_path / "b", tiny_a2m_config(epochs=1, epoch_size=32))
+    resumed = train_a2m(
+        procedural_clips, PROCEDURAL_ACTIONS, tmp_path / "b", config, device="cpu", resume=True
+    )
+    assert resumed.train_losses == pytest.approx(straight.train_losses, rel=1e-6)
+    with pytest.raises(ModelFormatError, match="different config"):
+        train_a2m(
+            procedural_clips,
+            PROCEDURAL_ACTIONS,
+            tmp_path / "b",
+            tiny_a2m_config(epochs=3, lr=1e-3),
+            resume=True,
+        )
+
+
+def test_evaluation_shares_the_real_sets_with_odmo(
+    a2m_dir: Path,
+    tiny_model_dir: Path,
+    procedural_clips: list[Motion],
+    classifier: Classifier,
+    torch_single_thread: None,
+) -> None:
+    clips = procedural_clips[::3]
+    a2m = evaluate_a2m(load_a2m(a2m_dir), clips, classifier, repeats=2, n_per_action=6, seed=4)
+    odmo = evaluate(load_model(tiny_model_dir), clips, classifier, repeats=2, n_per_action=6, seed=4)
+    assert a2m["real"] == odmo["real"]
+    expected = {"accuracy", "fid", "diversity", "multimodality", "apd", "n_apd", "reconstruction_error_m"}
+    assert set(a2m["generated"]) == expected
+    assert all(np.isfinite(v["mean"]) for v in a2m["generated"].values())
+    assert set(NOT_APPLICABLE) >= {"mode_homogeneity", "style_nmi", "end_error_m"}
+    assert a2m["meta"]["not_applicable"] == list(NOT_APPLICABLE)
+    trained = set(load_a2m(a2m_dir).provenance["train_sources"])
+    held = [c for c in clips if c.meta["source"] not in trained]  # the model's validation clips
+    assert a2m["meta"]["n_reconstruction_clips"] == len(held) > 0
+    with pytest.raises(ConfigError):
+        evaluate_a2m(load_a2m(a2m_dir), clips, classifier, repeats=0)
+
+
+def test_results_table_from_a_tiny_report() -> None:
+    def block(**metrics: float) -> dict[str, dict[str, float]]:
+        return {k: {"mean": v, "ci95": v / 10} for k, v in metrics.items()}
+
+    real = block(accuracy=0.95, fid=0.5, diversity=7.0, multimodality=2.5, n_apd=1.0)
+    entries = [
+        {"row": "odmo", "generated": block(accuracy=0.9, fid=1.25, mode_homogeneity=15.0, end_error_m=0.1)},
+        {
+            "row": "a2m",
+            "generated": block(accuracy=0.5, fid=4.0, reconstruction_error_m=0.05),
+            "speed": 1234.4,
+        },
+    ]
+    info = {"command": "python bench/compare.py --data D --epochs 2", "budget": "2 epochs × 2,048 windows"}
+    text = results_markdown(real, entries, info)
+    lines = text.splitlines()
+    header = next(line for line in lines if line.startswith("| Model"))
+    cells = {line.split("|")[1].strip(): line.split("|")[2:-1] for line in lines if line.startswith("| ")}
+    columns = [c.strip() for c in header.split("|")[2:-1]]
+    odmo = dict(zip(columns, (c.strip() for c in cells[ROWS["odmo"]]), strict=True))
+    a2m = dict(zip(columns, (c.strip() for c in cells[ROWS["a2m"]]), strict=True))
+    real_row = dict(zip(columns, (c.strip() for c in cells["Real motions"]), strict=True))
+    assert odmo["Acc ↑"] == "0.900 ± 0.090" and odmo["FID ↓"] == "1.250 ± 0.125"
+    assert odmo["Mode homog. (%)"] == "15.00 ± 1.50"
+    assert a2m["Mode homog. (%)"] == "n/a" and a2m["End error (m)"] == "n/a"
+    assert a2m["Recon. error (m)"] == "0.0500 ± 0.0050" and a2m["Decode (motions/s)"] == "1234"
+    assert real_row["Diversity →"] == "7.000 ± 0.700" and real_row["Recon. error (m)"] == "n/a"
+    assert "python bench/compare.py --data D --epochs 2" in text
+    assert "generated by `bench/compare.py`" in text
