@@ -1,0 +1,187 @@
+"""Reproduce the bundled default model: ODMO on Bandai-Namco-2, its classifier, its evaluation and card.
+
+    python bench/train_default.py --data "$(../shared/data/unpack)" [--epochs 300] [--resume]
+
+Holds out 15 % of the clips (stratified by action and style, seed 2022; see bench/heldout.py), trains
+ODMO on the rest, trains the evaluation classifier on the same training clips, evaluates on the held-out
+clips with ``engine.metrics.evaluate`` and writes the model folder with MODEL_CARD.md. Resumable.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import platform
+import shutil
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import torch
+from tqdm import tqdm
+
+if __package__ in (None, ""):
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from bench.heldout import HELDOUT_FRACTION, SPLIT_SEED, heldout_split
+from bench.model_card import write_model_card
+from engine.fileio import atomic_write_text
+from engine.generate import interpolate
+from engine.metrics.classifier import load_classifier, train_classifier
+from engine.metrics.evaluate import evaluate
+from engine.metrics.smoothness import max_frame_jump
+from engine.model.config import OdmoConfig
+from engine.modelio import load_model
+from engine.motion.datasets import load_folder
+from engine.train.loop import train
+
+TF_DECAY_SHARE = 2 / 3  # teacher forcing reaches its floor after two thirds of the budget
+DEFAULT_OUT = Path(__file__).resolve().parents[1] / "resources" / "models" / "bandai2-odmo"
+
+
+def parse_args() -> argparse.Namespace:
+    """Command-line options."""
+    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--data", required=True, type=Path)
+    p.add_argument("--out", type=Path, default=DEFAULT_OUT)
+    p.add_argument("--work", type=Path, default=Path("runs/bandai2-odmo"), help="checkpoints and logs")
+    p.add_argument("--epochs", type=int, default=100)
+    p.add_argument("--classifier-epochs", type=int, default=40)
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--repeats", type=int, default=10)
+    p.add_argument("--n-per-action", type=int, default=50)
+    p.add_argument("--device", default="auto")
+    p.add_argument("--resume", action="store_true")
+    p.add_argument("--skip-train", action="store_true", help="reuse the trained model in --work")
+    return p.parse_args()
+
+
+def main() -> int:
+    """Train, evaluate and package the default model."""
+    args = parse_args()
+    torch.set_num_threads(max(1, torch.get_num_threads()))
+    dataset = load_folder(args.data)
+    train_clips, test_clips = heldout_split(dataset.clips)
+    names = list(dataset.action_names)
+    config = OdmoConfig(
+        n_actions=len(names),
+        n_joints=dataset.skeleton.n_joints,
+        epochs=args.epochs,
+        tf_decay_epochs=max(1, round(TF_DECAY_SHARE * args.epochs)),
+    )
+    work = args.work
+    started = time.time()
+    if not args.skip_train:
+        bar = tqdm(total=config.epochs, desc="odmo", unit="epoch")
+
+        def show(p) -> None:
+            if p.stage == "train" and p.step == p.steps:
+                bar.n = p.epoch
+                bar.set_postfix(
+                    {k: f"{v:.3g}" for k, v in p.losses.items()} | {"w/s": f"{p.windows_per_s:.0f}"}
+                )
+                bar.refresh()
+
+        result = train(
+            train_clips,
+            names,
+            work,
+            config,
+            seed=args.seed,
+            device=args.device,
+            resume=args.resume,
+            progress=show,
+        )
+        bar.close()
+        train_seconds = result.train_seconds
+        (work / "train_summary.json").write_text(
+            json.dumps(
+                {
+                    "train_seconds": train_seconds,
+                    "windows_per_s": result.windows_per_s,
+                    "n_train": result.n_train,
+                    "n_val": result.n_val,
+                    "device": str(args.device),
+                    "torch_threads": torch.get_num_threads(),
+                },
+                indent=2,
+            )
+        )
+    summary = json.loads((work / "train_summary.json").read_text())
+    clf_dir = work / "classifier"
+    if not (clf_dir / "classifier.json").is_file():
+        train_classifier(
+            train_clips,
+            names,
+            clf_dir,
+            window=config.window,
+            fps=config.fps,
+            epochs=args.classifier_epochs,
+            seed=args.seed,
+        )
+    classifier = load_classifier(clf_dir)
+    loaded = load_model(work)
+    report = evaluate(
+        loaded, test_clips, classifier, repeats=args.repeats, n_per_action=args.n_per_action, seed=args.seed
+    )
+    atomic_write_text(work / "eval.json", json.dumps(report, indent=2))
+    smooth = interpolation_smoothness(loaded, test_clips)
+
+    out = args.out
+    out.mkdir(parents=True, exist_ok=True)
+    for name in ("model.safetensors", "model.json", "latent_bank.npz", "train_log.csv"):
+        shutil.copy2(work / name, out / name)
+    shutil.copytree(clf_dir, out / "classifier", dirs_exist_ok=True)
+    atomic_write_text(out / "eval.json", json.dumps(report, indent=2))
+    heldout = sorted(str(Path(c.meta["source"]).name) for c in test_clips)
+    atomic_write_text(out / "heldout_clips.txt", "\n".join(heldout) + "\n")
+    command = " ".join(["python", "bench/train_default.py", *sys.argv[1:]])
+    write_model_card(
+        out,
+        report,
+        {
+            "command": command,
+            "seed": args.seed,
+            "epochs": config.epochs,
+            "train_seconds": summary["train_seconds"],
+            "windows_per_s": summary["windows_per_s"],
+            "device": f"{args.device} ({platform.processor() or platform.machine()}, "
+            f"{torch.get_num_threads()} torch threads)",
+            "n_train": summary["n_train"],
+            "n_val": summary["n_val"],
+            "n_heldout": len(test_clips),
+            "heldout": f"{HELDOUT_FRACTION:.0%} of clips per action × style, seed {SPLIT_SEED}",
+            "classifier_accuracy": classifier.test_accuracy,
+            "total_seconds": time.time() - started,
+            "fingerprint": dataset.fingerprint,
+        },
+        smooth,
+    )
+    print(f"default model written to {out} ({_size_mb(out):.1f} MB)")
+    return 0
+
+
+def interpolation_smoothness(loaded, clips) -> dict[str, dict]:
+    """Per action: largest frame step of a 10-step strip between its two largest modes vs real clips."""
+    out = {}
+    for index, name in enumerate(loaded.action_names):
+        modes = loaded.bank.modes.get(index)
+        real = [c.resample(loaded.fps).joints for c in clips if c.action == name]
+        if modes is None or len(modes.weights) < 2 or not real:
+            continue
+        a, b = np.argsort(modes.weights)[::-1][:2]
+        strip = interpolate(loaded, modes.means[a], modes.means[b], index, steps=10)
+        generated = max_frame_jump(np.stack([s.motion.joints for s in strip]))
+        real_jump = max(max_frame_jump(r[None]) for r in real)
+        out[name] = {"modes": f"{a}→{b}", "generated": generated, "real": real_jump}
+    return out
+
+
+def _size_mb(folder: Path) -> float:
+    return sum(f.stat().st_size for f in folder.rglob("*") if f.is_file()) / 2**20
+
+
+if __name__ == "__main__":
+    np.set_printoptions(precision=4)
+    sys.exit(main())
