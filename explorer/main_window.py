@@ -220,7 +220,7 @@ class MainWindow(QMainWindow):
         for dock in (self.viewport_dock, self.timeline_dock, self.mode_dock, self.trajectory_dock):
             dock.show()
 
-    def closeEvent(self, event: QCloseEvent) -> None:
+    def closeEvent(self, event: QCloseEvent) -> None:  # noqa: N802
         """Save the layout, then close."""
         self.save_layout()
         super().closeEvent(event)

@@ -120,7 +120,7 @@ class Task(QObject):
     def _run(self) -> None:
         try:
             result = self._fn(
-                lambda text, frac: self.progress.emit(str(text), float(frac)), self.is_cancelled
+                lambda text, frac: self.progress.emit(str(text), float(frac)), self._cancel.is_set
             )
         except CancelledError:
             self.cancelled.emit()

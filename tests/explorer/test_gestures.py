@@ -66,7 +66,9 @@ def test_click_point_selects_decodes_and_plays(qtbot, explorer: Opened) -> None:
         _click(qtbot, explorer, c.state.embedding[index])
     assert c.state.selection == (index,)
     shown = c.state.shown[0]
-    expected = generate.decode(loaded, bank.codes[index], int(bank.actions[index]), bank.ends[index : index + 1])
+    expected = generate.decode(
+        loaded, bank.codes[index], int(bank.actions[index]), bank.ends[index : index + 1]
+    )
     np.testing.assert_allclose(shown.motion.joints[0], expected.joints[0], atol=1e-5)
     assert shown.bank_index == index
     assert explorer.window.timeline.is_playing()

@@ -1,0 +1,178 @@
+"""Explorer interaction timings: drag-to-pose latency, playback frame time, map redraw, cold start.
+
+Run under X (or ``xvfb-run -a -s "-screen 0 1920x1080x24"``)::
+
+    python bench/interaction.py --model DIR [--repeats 30]
+
+- drag → pose: from a ``dragMoved`` event to the new pose set in the viewport (decode in the worker,
+  result back on the GUI thread, state update, ``set_poses``), excluding the GPU draw; aim < 30 ms.
+- playback frame: one timeline step (poses of every skeleton set) plus a synchronous render.
+- map redraw: ``LatentMap.set_points`` of N random points plus a synchronous repaint.
+- cold start: process start to the first paint of the map with the model's points.
+"""
+
+from __future__ import annotations
+
+import argparse
+import statistics
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+if __package__ in (None, ""):
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from PySide6.QtCore import QEventLoop, QSettings, QTimer
+from PySide6.QtWidgets import QApplication
+
+from explorer.app import DEFAULT_MODEL, create_explorer
+
+
+def _wait(app: QApplication, condition, timeout: float = 60.0) -> None:
+    """Process events until ``condition()`` holds."""
+    deadline = time.perf_counter() + timeout
+    while not condition():
+        if time.perf_counter() > deadline:
+            raise TimeoutError("condition not reached")
+        app.processEvents(QEventLoop.ProcessEventsFlag.AllEvents, 5)
+
+
+def _median_ms(samples: list[float]) -> float:
+    return 1000.0 * statistics.median(samples)
+
+
+def bench_drag(app: QApplication, explorer, repeats: int) -> dict:
+    """Median ms from dragMoved to the new pose set in the viewport."""
+    c, lmap = explorer.controller, explorer.window.latent_map
+    emb = c.state.embedding
+    a, b = 0, int(np.argmax(np.linalg.norm(emb - emb[0], axis=1)))
+    lmap.dragStarted.emit(a)
+    times = []
+    for k in range(repeats):
+        xy = emb[a] + (k + 0.5) / repeats * (emb[b] - emb[a])
+        seen = []
+        c.shownChanged.connect(lambda s=seen: s.append(time.perf_counter()))
+        start = time.perf_counter()
+        lmap.dragMoved.emit(float(xy[0]), float(xy[1]))
+        _wait(app, lambda s=seen: bool(s))
+        times.append(seen[0] - start)
+        c.shownChanged.disconnect()
+    lmap.dragFinished.emit(float(emb[a][0]), float(emb[a][1]))
+    _wait(app, lambda: not c.tasks.active)
+    c.decoder.wait_idle()
+    app.processEvents()
+    return {
+        "measure": "drag → pose set (decode + update, no GPU draw)",
+        "n": repeats,
+        "median_ms": _median_ms(times),
+    }
+
+
+def bench_playback(app: QApplication, explorer, n_skeletons: int, frames: int) -> dict:
+    """Median ms of one playback step with ``n_skeletons`` skeletons, render included."""
+    c, viewport = explorer.controller, explorer.window.viewport
+    c.state.selection = tuple(range(n_skeletons))
+    c.play_selection()
+    _wait(app, lambda: len(c.state.shown) >= n_skeletons)
+    explorer.window.timeline.pause()
+    update, total = [], []
+    for f in range(frames):
+        start = time.perf_counter()
+        c.state.frame = f % max(1, c.state.shown[0].motion.n_frames)
+        mid = time.perf_counter()
+        viewport.render_now()
+        end = time.perf_counter()
+        update.append(mid - start)
+        total.append(end - start)
+    return {
+        "measure": f"playback step, {n_skeletons} skeleton(s)",
+        "n": frames,
+        "median_ms": _median_ms(total),
+        "update_only_ms": _median_ms(update),
+    }
+
+
+def bench_map(app: QApplication, explorer, n_points: int, repeats: int) -> dict:
+    """Median ms to set N points on the map and repaint it synchronously."""
+    lmap = explorer.window.latent_map
+    rng = np.random.default_rng(0)
+    xy = rng.standard_normal((n_points, 2))
+    colors = rng.random((n_points, 4))
+    colors[:, 3] = 1.0
+    ids = np.arange(n_points)
+    times = []
+    for _ in range(repeats):
+        start = time.perf_counter()
+        lmap.set_points(xy, colors, ids)
+        lmap.plot.viewport().repaint()
+        times.append(time.perf_counter() - start)
+    explorer.controller._redraw_map(explorer.controller.state.embedding)
+    return {"measure": f"map redraw, {n_points:,} points", "n": repeats, "median_ms": _median_ms(times)}
+
+
+def cold_start_child(model: Path, spawned: float) -> None:
+    """Child process: open the explorer and print seconds since ``spawned`` at the first map paint."""
+    app = QApplication.instance() or QApplication(sys.argv[:1])
+    explorer = create_explorer(model, None, QSettings("/dev/null", QSettings.Format.IniFormat))
+    explorer.window.show()
+    _wait(app, lambda: explorer.controller.state.embedding is not None, timeout=120)
+    explorer.window.latent_map.plot.viewport().repaint()
+    print(f"{time.time() - spawned:.3f}")
+    explorer.close()
+    QTimer.singleShot(0, app.quit)
+
+
+def bench_cold_start(model: Path, repeats: int) -> dict:
+    """Median seconds from process start to first map paint, over ``repeats`` fresh processes."""
+    times = []
+    for _ in range(repeats):
+        out = subprocess.run(
+            [sys.executable, __file__, "--model", str(model), "--cold-start-child", str(time.time())],
+            check=True,
+            capture_output=True,
+            text=True,
+        )
+        times.append(float(out.stdout.strip().splitlines()[-1]))
+    return {"measure": "cold start → first map paint", "n": repeats, "median_ms": _median_ms(times)}
+
+
+def main() -> int:
+    """Run every measurement and record them in docs/BENCHMARKS.md."""
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--model", type=Path, default=DEFAULT_MODEL)
+    parser.add_argument("--repeats", type=int, default=30)
+    parser.add_argument("--cold-starts", type=int, default=3)
+    parser.add_argument("--cold-start-child", type=float, help=argparse.SUPPRESS)
+    parser.add_argument("--no-record", action="store_true", help="print only")
+    args = parser.parse_args()
+    if args.cold_start_child is not None:
+        cold_start_child(args.model, args.cold_start_child)
+        return 0
+
+    import torch
+
+    torch.set_num_threads(1)
+    app = QApplication.instance() or QApplication(sys.argv[:1])
+    explorer = create_explorer(args.model, None, QSettings("/dev/null", QSettings.Format.IniFormat))
+    explorer.window.show()
+    _wait(app, lambda: explorer.controller.state.embedding is not None, timeout=120)
+    rows = [bench_drag(app, explorer, args.repeats)]
+    rows += [bench_playback(app, explorer, n, args.repeats) for n in (1, 10)]
+    rows += [bench_map(app, explorer, n, max(3, args.repeats // 5)) for n in (3_000, 30_000)]
+    explorer.close()
+    rows.append(bench_cold_start(args.model, args.cold_starts))
+    for row in rows:
+        print(row)
+    if not args.no_record:
+        from bench._report import record
+
+        command = f"xvfb-run -a python bench/interaction.py --model {args.model} --repeats {args.repeats}"
+        record("Explorer interaction", rows, command)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
