@@ -38,7 +38,7 @@ def save_checkpoint(
         "model": model.state_dict(),
         "optimizer": optimizer.state_dict(),
         # PCG64 state words exceed 64 bits; strings keep them exact under weights_only loading.
-        "numpy_rng": {k: (str(v) if k == "state" else v) for k, v in state.items()},
+        "numpy_rng": {k: v for k, v in state.items() if k != "state"},
         "numpy_rng_words": {k: str(v) for k, v in state["state"].items()},
         "torch_rng": torch_rng.get_state(),
         "extra": extra,

@@ -38,7 +38,13 @@ _TERMS = (*LOSS_TERMS, "total")
 
 @dataclass
 class TrainProgress:
-    """One progress report: after every step (stage "train") and during bank building (stage "bank")."""
+    """One progress report: after every step (stage "train") and during bank building (stage "bank").
+
+    ``epoch``/``step`` are 1-based and count completed work; ``losses`` are the running means of the
+    current epoch (keys: recon, traj, consistency, contrastive, prior, total); ``val_losses`` those of the
+    last finished epoch's validation (None before the first); ``fraction`` is 0..1 of the stage;
+    ``message`` is the bank builder's text.
+    """
 
     stage: str
     epoch: int
@@ -323,22 +329,21 @@ def train(
 
     def bank_progress(message: str, fraction: float) -> None:
         if progress is not None:
-            progress(
-                TrainProgress(
-                    "bank",
-                    config.epochs,
-                    config.epochs,
-                    0,
-                    0,
-                    train_losses,
-                    val_losses,
-                    0.0,
-                    0.0,
-                    0.0,
-                    fraction,
-                    message,
-                )
+            report = TrainProgress(
+                stage="bank",
+                epoch=config.epochs,
+                epochs=config.epochs,
+                step=0,
+                steps=0,
+                losses=train_losses,
+                val_losses=val_losses,
+                windows_per_s=0.0,
+                steps_per_s=0.0,
+                eta_s=0.0,
+                fraction=fraction,
+                message=message,
             )
+            progress(report)
 
     bank = build_bank(
         codes,

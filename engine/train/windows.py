@@ -123,6 +123,7 @@ class PreparedClips:
     skeleton : the skeleton shared by every clip.
     fps : frame rate of ``joints``.
     window : window length T.
+    pairs : (left, right) joint pairs that define the facing (see ``left_right_pairs``).
     """
 
     joints: list[np.ndarray]
