@@ -25,6 +25,7 @@ from engine.errors import CancelledError, ConfigError, DataError, ModelFormatErr
 from engine.fileio import atomic_write_bytes, atomic_write_text
 from engine.metrics.accuracy import recognition_accuracy
 from engine.motion.motion import Motion
+from engine.train.pairs import split_clips
 from engine.train.windows import PreparedClips, crop_windows, prepare_clips
 
 log = logging.getLogger(__name__)
@@ -159,19 +160,6 @@ class Classifier:
         return self.config.n_joints * 3
 
 
-def _split(
-    labels: np.ndarray, val_fraction: float, rng: np.random.Generator
-) -> tuple[np.ndarray, np.ndarray]:
-    """Train and held-out clip indices, stratified by action (each action keeps a training clip)."""
-    train, held = [], []
-    for action in np.unique(labels):
-        idx = rng.permutation(np.flatnonzero(labels == action))
-        n_held = min(round(val_fraction * len(idx)), len(idx) - 1)
-        held.extend(idx[:n_held])
-        train.extend(idx[n_held:])
-    return np.sort(np.array(train, dtype=np.int64)), np.sort(np.array(held, dtype=np.int64))
-
-
 def _accuracy_on(
     clf: Classifier, prepared: PreparedClips, indices: np.ndarray, rng: np.random.Generator
 ) -> float:
@@ -207,8 +195,8 @@ def train_classifier(
         len(action_names), skeleton.n_joints, window=window, fps=fps, batch_size=batch_size, epochs=epochs
     )
     prepared = prepare_clips(clips, action_names, fps, window)
+    train_idx, held_idx = split_clips(prepared.actions, val_fraction, seed)
     rng = np.random.default_rng(seed)
-    train_idx, held_idx = _split(prepared.actions, val_fraction, rng)
     net = build_net(config, torch.Generator().manual_seed(seed))
     clf = Classifier(net, config, list(action_names), tuple(skeleton.names), float("nan"), len(held_idx))
     optimiser = torch.optim.Adam(net.parameters(), lr=config.lr)

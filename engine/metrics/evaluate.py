@@ -106,6 +106,33 @@ def _set_metrics(
     return out
 
 
+def _encode(loaded: LoadedModel, batch: WindowBatch) -> torch.Tensor:
+    """(B, D) code means of a batch of real windows."""
+    with torch.inference_mode():
+        lmp = torch.from_numpy(np.ascontiguousarray(batch.lmp, np.float32))
+        codes, _ = loaded.model.encode(lmp, torch.from_numpy(np.asarray(batch.mask, bool)))
+    return codes
+
+
+def reconstruction_error(loaded: LoadedModel, batch: WindowBatch) -> float:
+    """MPJPE (metres) of encode → decode (true action and end location) over the real frames of a batch."""
+    codes = _encode(loaded, batch)
+    with torch.inference_mode():
+        ends = torch.from_numpy(np.ascontiguousarray(batch.ends, np.float32))
+        recon, _ = loaded.model.decode(codes, torch.from_numpy(np.asarray(batch.actions, np.int64)), ends)
+    return mpjpe(recon.numpy(), batch.joints, batch.mask)
+
+
+def held_out(loaded: LoadedModel, sources: Sequence[str]) -> np.ndarray:
+    """Indices of clips the model did not train on (bank entries marked ``split: train`` are excluded)."""
+    trained: set[str] = set()
+    if loaded.bank is not None:
+        trained = {
+            s for s, m in zip(loaded.bank.sources, loaded.bank.meta, strict=True) if m.get("split") == "train"
+        }
+    return np.array([i for i, s in enumerate(sources) if s not in trained], dtype=np.int64)
+
+
 def _model_metrics(
     loaded: LoadedModel,
     batch: WindowBatch,
@@ -115,18 +142,11 @@ def _model_metrics(
     n_codes: int,
     rng: np.random.Generator,
 ) -> dict[str, float]:
-    """Mode homogeneity, style purity, reconstruction, trajectory control on one crop of every real clip."""
-    model = loaded.model
-    joints, mask = np.asarray(batch.joints, np.float32), np.asarray(batch.mask, bool)
-    labels = np.asarray(batch.actions)
-    out: dict[str, float] = {}
-    with torch.inference_mode():
-        codes, _ = model.encode(torch.from_numpy(np.ascontiguousarray(batch.lmp)), torch.from_numpy(mask))
-        ends = torch.from_numpy(np.ascontiguousarray(batch.ends, np.float32))
-        recon, _ = model.decode(codes, torch.from_numpy(labels.astype(np.int64)), ends)
-    out["reconstruction_error_m"] = mpjpe(recon.numpy(), joints, mask)
-    codes_np = codes.numpy()
+    """Mode homogeneity, style purity and trajectory control on one crop of every real clip."""
+    joints, labels = np.asarray(batch.joints, np.float32), np.asarray(batch.actions)
+    codes_np = _encode(loaded, batch).numpy()
     bank = loaded.bank
+    out: dict[str, float] = {}
     if bank is None:
         return out
     groups = _by_action(joints, labels)
@@ -205,7 +225,8 @@ def evaluate(
     ``n_per_action`` motions per action, and crops one window of every real clip for the model metrics.
     Real: accuracy/diversity/multimodality/APD of A, FID and n-APD of A against B. Generated: the same
     against A, plus mode homogeneity and style purity of the real clips grouped by the model's modes,
-    reconstruction error, and trajectory control (``n_per_action // 10`` codes × 10 end points per action).
+    reconstruction error (on the clips the model did not train on, when its bank says which), and trajectory
+    control (``n_per_action // 10`` codes × 10 end points per action).
     Without a classifier the classifier metrics (accuracy, FID, diversity, multimodality) are left out.
     """
     if strategy not in EVAL_STRATEGIES:
@@ -221,6 +242,9 @@ def evaluate(
     actions = np.unique(labels)
     have_style = all("style" in c.meta for c in real_clips)
     styles = np.array([str(c.meta["style"]) for c in real_clips]) if have_style else None
+    held = held_out(loaded, prepared.sources)
+    if len(held) == 0:
+        log.warning("every real clip is a training clip of the model; reconstruction is on training clips")
     real_runs, gen_runs = [], []
     for r in range(repeats):
         if cancel is not None and cancel():
@@ -234,6 +258,10 @@ def evaluate(
         ref = _reference(sets[0], classifier)
         gen, gen_labels = _generate(loaded, actions, n_per_action, strategy, rng)
         gen_metrics = _set_metrics(gen, None, gen_labels, ref, classifier, names, rng)
+        recon_idx = held if len(held) else np.arange(len(real_clips))
+        gen_metrics["reconstruction_error_m"] = reconstruction_error(
+            loaded, crop_windows(prepared, recon_idx, rng)
+        )
         every = crop_windows(prepared, np.arange(len(real_clips)), rng)
         n_codes = max(1, n_per_action // CONTROL_POINTS)
         gen_metrics.update(_model_metrics(loaded, every, styles, classifier, strategy, n_codes, rng))
@@ -246,6 +274,8 @@ def evaluate(
         "classifier": None if classifier is None else str(classifier.path),
         "classifier_test_accuracy": None if classifier is None else classifier.test_accuracy,
         "n_real_clips": len(real_clips),
+        "n_reconstruction_clips": int(len(held) or len(real_clips)),
+        "reconstruction_held_out": bool(len(held)),
         "actions": [names[a] for a in actions],
         "repeats": repeats,
         "n_per_action": n_per_action,

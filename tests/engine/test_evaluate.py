@@ -43,6 +43,9 @@ def test_evaluate_returns_every_metric_finite(
     assert 0.0 <= gen["accuracy"]["mean"] <= 1.0 and 0.0 <= result["real"]["accuracy"]["mean"] <= 1.0
     assert gen["end_error_m"]["mean"] > 0 and gen["reconstruction_error_m"]["mean"] > 0
     assert result["meta"]["repeats"] == 2 and result["meta"]["actions"] == PROCEDURAL_ACTIONS
+    # reconstruction runs on the tiny model's validation clips only (its bank marks the training ones)
+    assert result["meta"]["reconstruction_held_out"]
+    assert 0 < result["meta"]["n_reconstruction_clips"] < len(procedural_clips)
     again = evaluate(loaded, procedural_clips, classifier, repeats=2, n_per_action=10, seed=3)
     assert again["generated"] == result["generated"] and again["real"] == result["real"]
     # two real sets drawn from the same clips: n-APD near 1, FID far below generated-vs-real
