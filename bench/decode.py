@@ -44,7 +44,9 @@ def _timed(fn: Callable[[], object], repeats: int) -> float:
 def _loaded(model: OdmoModel, config: OdmoConfig) -> LoadedModel:
     """A LoadedModel around random weights (no bank: end locations are given)."""
     parents = np.arange(-1, N_JOINTS - 1)
-    skeleton = Skeleton(tuple(f"j{i}" for i in range(N_JOINTS)), parents, np.tile([0.0, 0.1, 0.0], (N_JOINTS, 1)))
+    skeleton = Skeleton(
+        tuple(f"j{i}" for i in range(N_JOINTS)), parents, np.tile([0.0, 0.1, 0.0], (N_JOINTS, 1))
+    )
     return LoadedModel(
         model=model,
         config=config,
@@ -57,6 +59,30 @@ def _loaded(model: OdmoModel, config: OdmoConfig) -> LoadedModel:
         bank=None,
         path=Path("random-weights"),
     )
+
+
+def _stages(model: OdmoModel, rng: np.random.Generator, config: OdmoConfig) -> list[dict[str, object]]:
+    """Time the three decode stages (trajectory LSTM, trajectory encoder, free-running pose decoder)."""
+    rows = []
+    gen = model.motion_gen
+    for batch in (1, 1024):
+        z = torch.as_tensor(rng.standard_normal((batch, config.latent_dim)), dtype=torch.float32)
+        a = torch.as_tensor(rng.integers(0, N_ACTIONS, batch))
+        e = torch.as_tensor(rng.standard_normal((batch, 3)), dtype=torch.float32)
+        with torch.inference_mode():
+            cond = model.condition(z, a)
+            traj = model.traj_gen(cond, e)
+            state, const = gen._context(traj, cond)
+            repeats = 20 if batch == 1 else 3
+            stages = {
+                "trajectory generator": lambda cond=cond, e=e: model.traj_gen(cond, e),
+                "trajectory encoder + static input": lambda traj=traj, cond=cond: gen._context(traj, cond),
+                "free-running pose decoder": lambda const=const, state=state: gen._free_run(const, state),
+            }
+            for name, fn in stages.items():
+                seconds = _timed(fn, repeats)
+                rows.append({"what": f"stage: {name}", "batch": batch, "ms": round(seconds * 1e3, 2)})
+    return rows
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -74,8 +100,14 @@ def main(argv: list[str] | None = None) -> int:
 
     rows = []
     one = _timed(lambda: decode(loaded, code, 3, end), args.repeats)
-    rows.append({"what": "engine.generate.decode, one motion (API, Motion built)", "batch": 1,
-                 "ms": round(one * 1e3, 2), "motions/s": round(1 / one)})
+    rows.append(
+        {
+            "what": "engine.generate.decode, one motion (API, Motion built)",
+            "batch": 1,
+            "ms": round(one * 1e3, 2),
+            "motions/s": round(1 / one),
+        }
+    )
     for batch in (1, 2, 64, 1024):
         z = torch.as_tensor(rng.standard_normal((batch, config.latent_dim)), dtype=torch.float32)
         a = torch.as_tensor(rng.integers(0, N_ACTIONS, batch))
@@ -86,8 +118,15 @@ def main(argv: list[str] | None = None) -> int:
                 model.decode(z, a, e)
 
         seconds = _timed(run, max(3, args.repeats // max(1, batch // 16)))
-        rows.append({"what": "OdmoModel.decode (inference_mode)", "batch": batch,
-                     "ms": round(seconds * 1e3, 2), "motions/s": round(batch / seconds)})
+        rows.append(
+            {
+                "what": "OdmoModel.decode (inference_mode)",
+                "batch": batch,
+                "ms": round(seconds * 1e3, 2),
+                "motions/s": round(batch / seconds),
+            }
+        )
+    rows += _stages(model, rng, config)
     for row in rows:
         print(row)
     record("decode", rows, f"python bench/decode.py --threads {args.threads} --repeats {args.repeats}")
