@@ -30,14 +30,24 @@ from PySide6.QtWidgets import QApplication
 
 from explorer.app import DEFAULT_MODEL, create_explorer
 
+_LOOP: list[QEventLoop] = []
+
 
 def _wait(app: QApplication, condition, timeout: float = 60.0) -> None:
-    """Process events until ``condition()`` holds."""
+    """Process events until ``condition()`` holds.
+
+    Uses ``QEventLoop.processEvents(flags) -> bool``: PySide6 6.12 on Python 3.11 drops a reference to
+    None on every call of a void-returning method (``QApplication.processEvents`` included), which
+    crashes a tight polling loop.
+    """
+    if not _LOOP:
+        _LOOP.append(QEventLoop())
     deadline = time.perf_counter() + timeout
     while not condition():
         if time.perf_counter() > deadline:
             raise TimeoutError("condition not reached")
-        app.processEvents(QEventLoop.ProcessEventsFlag.AllEvents, 5)
+        _LOOP[0].processEvents(QEventLoop.ProcessEventsFlag.AllEvents)
+        time.sleep(0.0005)
 
 
 def _median_ms(samples: list[float]) -> float:
@@ -145,6 +155,7 @@ def main() -> int:
     parser.add_argument("--model", type=Path, default=DEFAULT_MODEL)
     parser.add_argument("--repeats", type=int, default=30)
     parser.add_argument("--cold-starts", type=int, default=3)
+    parser.add_argument("--map-sizes", type=int, nargs="+", default=[3_000, 30_000])
     parser.add_argument("--cold-start-child", type=float, help=argparse.SUPPRESS)
     parser.add_argument("--no-record", action="store_true", help="print only")
     args = parser.parse_args()
@@ -161,7 +172,7 @@ def main() -> int:
     _wait(app, lambda: explorer.controller.state.embedding is not None, timeout=120)
     rows = [bench_drag(app, explorer, args.repeats)]
     rows += [bench_playback(app, explorer, n, args.repeats) for n in (1, 10)]
-    rows += [bench_map(app, explorer, n, max(3, args.repeats // 5)) for n in (3_000, 30_000)]
+    rows += [bench_map(app, explorer, n, max(3, args.repeats // 5)) for n in args.map_sizes]
     explorer.close()
     rows.append(bench_cold_start(args.model, args.cold_starts))
     for row in rows:
@@ -169,7 +180,8 @@ def main() -> int:
     if not args.no_record:
         from bench._report import record
 
-        command = f"xvfb-run -a python bench/interaction.py --model {args.model} --repeats {args.repeats}"
+        sizes = " ".join(str(n) for n in args.map_sizes)
+        command = f"xvfb-run -a python bench/interaction.py --model {args.model} --map-sizes {sizes}"
         record("Explorer interaction", rows, command)
     return 0
 

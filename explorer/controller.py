@@ -38,6 +38,7 @@ log = logging.getLogger(__name__)
 MAX_PLAYED = 12  # motions played at once from a selection
 VARIATIONS = 8
 LOCAL_MODE_SAMPLES = 6
+GHOSTS = 4  # faint poses along a single motion (time-lapse trail)
 PANEL_STRATEGIES = {"one_mode": "mode"}  # mode panel key -> engine strategy
 
 
@@ -727,7 +728,8 @@ class Controller(QObject):
         first = played[0]
         w.viewport.set_trajectory(first.joints[:, first.skeleton.root])
         w.viewport.set_end_marker(None if shown[0].end is None else np.asarray(shown[0].end, np.float64))
-        w.viewport.set_ghosts(first.joints[:: max(1, first.n_frames // 6)])
+        ghosts = first.joints[np.linspace(0, first.n_frames - 1, GHOSTS).round().astype(int)]
+        w.viewport.set_ghosts(ghosts if len(played) == 1 else None)
         w.trajectory.set_generated(_root_xz(first), None)
         length = max(m.n_frames for m in played)
         w.timeline.set_length(length, first.fps)
