@@ -8,19 +8,20 @@ import re
 import sys
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from tqdm import tqdm
 
 from engine.errors import ConfigError, DataError
-from engine.generate import Sample, action_index, encode, encode_clips, interpolate, sample
-from engine.latent.bank import build_bank
-from engine.model.config import OdmoConfig
-from engine.modelio import BANK_FILE, LoadedModel, load_model
-from engine.motion.datasets import Dataset, load_folder
-from engine.motion.motion import Motion
-from engine.train.loop import TrainProgress, train
+
+if TYPE_CHECKING:
+    from engine.generate import Sample
+    from engine.modelio import LoadedModel
+    from engine.motion.datasets import Dataset
+    from engine.train.loop import TrainProgress
+
+# torch and the model code are imported inside the commands, so that `odmo --help` stays quick.
 
 MOTION_SUFFIXES = (".npz", ".bvh", ".npy")
 ENDPOINT_HELP = (
@@ -119,10 +120,15 @@ def config_overrides(pairs: Sequence[str]) -> dict[str, Any]:
 
 
 def _dataset(args: argparse.Namespace) -> Dataset:
+    from engine.motion.datasets import load_folder
+
     return load_folder(args.data, pattern=args.pattern, labels=args.labels)
 
 
 def _cmd_train(args: argparse.Namespace) -> int:
+    from engine.model.config import OdmoConfig
+    from engine.train.loop import train
+
     dataset = _dataset(args)
     fields = {
         "n_actions": len(dataset.action_names),
@@ -157,6 +163,10 @@ def _cmd_train(args: argparse.Namespace) -> int:
 
 
 def _cmd_bank(args: argparse.Namespace) -> int:
+    from engine.generate import encode_clips
+    from engine.latent.bank import build_bank
+    from engine.modelio import BANK_FILE, load_model
+
     loaded = load_model(args.model, with_bank=False)
     dataset = _dataset(args)
     unknown = sorted({c.action for c in dataset.clips} - set(loaded.action_names))
@@ -190,6 +200,9 @@ def _cmd_bank(args: argparse.Namespace) -> int:
 
 
 def _cmd_sample(args: argparse.Namespace) -> int:
+    from engine.generate import sample
+    from engine.modelio import load_model
+
     loaded = load_model(args.model)
     strategy = "mode" if args.mode is not None else args.strategy
     samples = sample(
@@ -200,6 +213,9 @@ def _cmd_sample(args: argparse.Namespace) -> int:
 
 
 def _cmd_interpolate(args: argparse.Namespace) -> int:
+    from engine.generate import action_index, interpolate
+    from engine.modelio import load_model
+
     loaded = load_model(args.model)
     action = action_index(loaded, args.action)
     a, b = (endpoint_code(loaded, text, action) for text in (args.from_, args.to))
@@ -209,6 +225,10 @@ def _cmd_interpolate(args: argparse.Namespace) -> int:
 
 
 def _cmd_encode(args: argparse.Namespace) -> int:
+    from engine.generate import encode
+    from engine.modelio import load_model
+    from engine.motion.motion import Motion
+
     loaded = load_model(args.model)
     motion = Motion.from_file(args.file)
     code, guess = encode(loaded, motion)

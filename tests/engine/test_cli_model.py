@@ -160,6 +160,7 @@ def test_bank_rebuilds_the_training_codes(odmo, model_copy, data_dir, tiny_model
     assert {m.get("style") for m in rebuilt.meta} >= {"stroll", "march", "sidestep"}
 
 
+@pytest.mark.slow
 def test_train_writes_a_loadable_model(odmo, data_dir, tmp_path, capsys):
     sizes = [
         "enc_hidden=8",
