@@ -31,7 +31,6 @@ if __package__ in (None, ""):
 from bench._report import machine
 from bench.heldout import HELDOUT_FRACTION, SPLIT_SEED, heldout_split
 from engine.a2m_io import LoadedA2m, load_a2m
-from engine.errors import ModelFormatError
 from engine.fileio import atomic_write_text
 from engine.metrics.a2m_eval import evaluate_a2m
 from engine.metrics.classifier import Classifier, load_classifier, train_classifier
@@ -232,6 +231,12 @@ def a2m_speed(loaded: LoadedA2m) -> float:
     return _speed(decode)
 
 
+def _check_same_real(first: dict[str, Any], other: dict[str, Any], row: str) -> None:
+    """RuntimeError unless ``row`` was evaluated against the same real sets (NaN-safe comparison)."""
+    if json.dumps(first, sort_keys=True) != json.dumps(other, sort_keys=True):
+        raise RuntimeError(f"{row}: the real sets differ from the first evaluation's")
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Train or reuse every model, evaluate them all, write RESULTS.md."""
     args = parse_args(argv)
@@ -289,15 +294,13 @@ def main(argv: Sequence[str] | None = None) -> int:
         report = evaluate(loaded, test_clips, classifier, strategy=strategy, **evaluation)
         atomic_write_text(args.runs / f"eval_{row}.json", json.dumps(report, indent=2))
         real = real or report["real"]
-        if report["real"] != real:
-            raise ModelFormatError(f"{row}: the real sets differ between evaluations")
+        _check_same_real(real, report["real"], row)
         entries.append({"row": row, "generated": report["generated"], "speed": odmo_speed(loaded)})
         log.info("%s evaluated", row)
     a2m = load_a2m(folders["a2m"], device="cpu")
     report = evaluate_a2m(a2m, test_clips, classifier, **evaluation)
     atomic_write_text(args.runs / "eval_a2m.json", json.dumps(report, indent=2))
-    if report["real"] != real:
-        raise ModelFormatError("a2m: the real sets differ from the ODMO evaluations")
+    _check_same_real(real, report["real"], "a2m")
     entries.append({"row": "a2m", "generated": report["generated"], "speed": a2m_speed(a2m)})
 
     windows = f"{a2m_config.epoch_size:,}"
@@ -327,7 +330,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         + " ".join(["python", "bench/compare.py", *(argv if argv is not None else sys.argv[1:])])
         + "`",
         "Reproduce": f"`python bench/compare.py --data DATA --epochs {args.epochs} --repeats {args.repeats} "
-        f"--n-per-action {args.n_per_action} --seed {args.seed}` (add `--reuse` to keep trained models)",
+        f"--n-per-action {args.n_per_action} --classifier-epochs {args.classifier_epochs} --seed {args.seed}` "
+        "(add `--reuse` to keep trained models; the classifier is the shipped one when present)",
     }
     atomic_write_text(args.results, results_markdown(real, entries, info))
     print(f"wrote {args.results}")
