@@ -330,7 +330,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         + " ".join(["python", "bench/compare.py", *(argv if argv is not None else sys.argv[1:])])
         + "`",
         "Reproduce": f"`python bench/compare.py --data DATA --epochs {args.epochs} --repeats {args.repeats} "
-        f"--n-per-action {args.n_per_action} --classifier-epochs {args.classifier_epochs} --seed {args.seed}` "
+        f"--n-per-action {args.n_per_action} --classifier-epochs {args.classifier_epochs} "
+        f"--seed {args.seed}` "
         "(add `--reuse` to keep trained models; the classifier is the shipped one when present)",
     }
     atomic_write_text(args.results, results_markdown(real, entries, info))
