@@ -52,6 +52,7 @@ def parse_args() -> argparse.Namespace:
     p.add_argument("--repeats", type=int, default=10)
     p.add_argument("--n-per-action", type=int, default=50)
     p.add_argument("--device", default="auto")
+    p.add_argument("--threads", type=int, default=1, help="torch CPU threads (more crawl on a busy machine)")
     p.add_argument("--resume", action="store_true")
     p.add_argument("--skip-train", action="store_true", help="reuse the trained model in --work")
     return p.parse_args()
@@ -60,7 +61,7 @@ def parse_args() -> argparse.Namespace:
 def main() -> int:
     """Train, evaluate and package the default model."""
     args = parse_args()
-    torch.set_num_threads(max(1, torch.get_num_threads()))
+    torch.set_num_threads(args.threads)
     dataset = load_folder(args.data)
     train_clips, test_clips = heldout_split(dataset.clips)
     names = list(dataset.action_names)

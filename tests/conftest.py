@@ -6,8 +6,12 @@ import os
 from pathlib import Path
 
 import pytest
+import torch
 
 pytest_plugins = ["tests.fixtures.procedural", "tests.fixtures.tiny_model"]
+
+# Two cores shared with Xvfb and numba: more torch threads only oversubscribe them.
+torch.set_num_threads(1)
 
 _SHARED_BANDAI = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "bandai-namco-2"
 
