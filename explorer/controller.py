@@ -67,6 +67,7 @@ class Controller(QObject):
         self._local_mode: tuple[ModeModel, np.ndarray] | None = None
         self._drag_from: int | None = None
         self._played: list[Motion] = []
+        self._rig: tuple[bytes, int, str] | None = None
         self._model_task = None
         self._connect()
 
@@ -247,6 +248,7 @@ class Controller(QObject):
         w.action_combo.setCurrentIndex(0)
         w.action_combo.blockSignals(False)
         w.viewport.set_skeletons(loaded.skeleton.parents, 1)
+        self._rig = None
         self.state.focus_action = 0
         self._projection_changed(self.state.projection)
         w.latent_map.set_legend(names, [tuple(c) for c in category_colors(len(names))])
@@ -723,8 +725,11 @@ class Controller(QObject):
         sequence = self.state.layout == "sequence" and len(motions) > 1
         played = [_concatenate(motions)] if sequence else motions
         self._played = played
-        w.viewport.set_skeletons(played[0].skeleton.parents, len(played))
-        w.viewport.set_layout("overlay" if self.state.layout == "overlay" else "side_by_side", 1.0)
+        rig = (played[0].skeleton.parents.tobytes(), len(played), self.state.layout)
+        if rig != self._rig:  # rebuilding the actors is the slow part of an update: only when needed
+            self._rig = rig
+            w.viewport.set_skeletons(played[0].skeleton.parents, len(played))
+            w.viewport.set_layout("overlay" if self.state.layout == "overlay" else "side_by_side", 1.0)
         first = played[0]
         w.viewport.set_trajectory(first.joints[:, first.skeleton.root])
         w.viewport.set_end_marker(None if shown[0].end is None else np.asarray(shown[0].end, np.float64))
