@@ -126,25 +126,26 @@ def _dataset(args: argparse.Namespace) -> Dataset:
 
 
 def _cmd_train(args: argparse.Namespace) -> int:
+    from engine.model.a2m import A2mConfig
     from engine.model.config import OdmoConfig
+    from engine.train.a2m_loop import train_a2m
     from engine.train.loop import train
 
     dataset = _dataset(args)
-    fields = {
-        "n_actions": len(dataset.action_names),
-        "n_joints": dataset.skeleton.n_joints,
-        "arch": args.arch,
-    }
+    fields = {"n_actions": len(dataset.action_names), "n_joints": dataset.skeleton.n_joints}
     fields |= config_overrides(args.set)
     if args.epochs is not None:
         fields["epochs"] = args.epochs
+    config_type, extra = (
+        (A2mConfig, {}) if args.arch == "a2m" else (OdmoConfig, {"bank_projections": args.projections})
+    )
     try:
-        config = OdmoConfig(**fields)
+        config = config_type(**fields)
     except TypeError as exc:
-        raise ConfigError(f"bad model setting: {exc}") from None
+        raise ConfigError(f"bad {args.arch} setting: {exc}") from None
     progress = TqdmProgress()
     try:
-        result = train(
+        result = (train_a2m if args.arch == "a2m" else train)(
             dataset.clips,
             dataset.action_names,
             args.out,
@@ -153,7 +154,7 @@ def _cmd_train(args: argparse.Namespace) -> int:
             device=args.device,
             resume=args.resume,
             progress=progress,
-            bank_projections=args.projections,
+            **extra,
         )
     finally:
         progress.close()
@@ -271,7 +272,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--device", default="auto", choices=("auto", "cpu", "cuda"))
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--resume", action="store_true", help="continue from the folder's last checkpoint")
-    p.add_argument("--arch", default="odmo", choices=("odmo",))
+    p.add_argument(
+        "--arch", default="odmo", choices=("odmo", "a2m"), help="odmo, or the Action2Motion-style baseline"
+    )
     p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", help="any model setting")
     p.set_defaults(func=_cmd_train)
 

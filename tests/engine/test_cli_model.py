@@ -21,9 +21,6 @@ PATTERN = r"^(?P<action>[a-z]+)_(?P<style>[a-z-]+)_\d+"
 def odmo(monkeypatch, tmp_path):
     """Run ``odmo`` in-process; returns its exit code (the dataset cache goes to a temporary folder)."""
     monkeypatch.setenv("ODMO_CACHE_DIR", str(tmp_path / "cache"))
-    if "engine.cli.model_commands" not in cli.COMMAND_MODULES:
-        # Until the CLI frame registers the model commands.
-        monkeypatch.setattr(cli, "COMMAND_MODULES", (*cli.COMMAND_MODULES, "engine.cli.model_commands"))
 
     def run(*argv: object) -> int:
         return cli.main([str(a) for a in argv])
@@ -185,3 +182,17 @@ def test_train_rejects_unknown_settings(odmo, data_dir, tmp_path, capsys):
     argv = ["train", "--data", data_dir, "--pattern", PATTERN, "--out", tmp_path / "m", "--set", "depth=3"]
     assert odmo(*argv) == 1
     _one_error_line(capsys, "depth")
+
+
+@pytest.mark.slow
+def test_train_a2m_baseline_writes_a_loadable_model(odmo, data_dir, tmp_path):
+    from engine.a2m_io import load_a2m
+
+    settings = [
+        x for s in ("hidden=8", "latent_dim=4", "batch_size=8", "epoch_size=16") for x in ("--set", s)
+    ]
+    out = tmp_path / "a2m"
+    argv = ["train", "--arch", "a2m", "--data", data_dir, "--pattern", PATTERN, "--out", out, "--epochs", 1]
+    assert odmo(*argv, *settings) == 0
+    loaded = load_a2m(out)
+    assert loaded.config.hidden == 8 and loaded.action_names == ["jump", "walk", "wave"]
