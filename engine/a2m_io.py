@@ -16,7 +16,7 @@ from safetensors.torch import save as save_safetensors
 from engine.errors import ConfigError, ModelFormatError
 from engine.fileio import atomic_write_bytes, atomic_write_text
 from engine.model.a2m import A2mConfig, A2mModel
-from engine.modelio import FORMAT, FORMAT_VERSION, META_FILE, WEIGHTS_FILE, resolve_device
+from engine.modelio import FORMAT, FORMAT_VERSION, META_FILE, WEIGHTS_FILE, read_meta, resolve_device
 from engine.motion.skeleton import Skeleton
 
 ARCH = "a2m"
@@ -75,25 +75,10 @@ def save_a2m(
 
 
 def _read_meta(path: Path) -> dict[str, Any]:
-    """Parsed ``model.json`` of an A2M folder, checked for format, version, arch and keys."""
-    try:
-        meta = json.loads(path.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise ModelFormatError(f"{path}: missing (not a model folder?)") from None
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise ModelFormatError(f"{path}: unreadable model description: {exc}") from exc
-    if not isinstance(meta, dict) or meta.get("format") != FORMAT:
-        raise ModelFormatError(f"{path}: not an ODMO Explorer model description")
-    version = meta.get("format_version")
-    if not isinstance(version, int) or not 1 <= version <= FORMAT_VERSION:
-        raise ModelFormatError(f"{path}: format version {version!r} is not one this program reads")
+    """Parsed ``model.json`` of an A2M folder: ``modelio.read_meta``'s checks, then the architecture."""
+    meta = read_meta(path)
     if meta.get("arch") != ARCH:
         raise ModelFormatError(f"{path}: architecture {meta.get('arch', 'odmo')!r} is not {ARCH!r}")
-    missing = [
-        k for k in ("config", "skeleton", "action_names", "root_height", "provenance") if k not in meta
-    ]
-    if missing:
-        raise ModelFormatError(f"{path}: missing keys: {', '.join(missing)}")
     return meta
 
 

@@ -95,8 +95,8 @@ def save_model(
     atomic_write_text(out / META_FILE, json.dumps(meta, indent=2) + "\n")
 
 
-def _read_meta(path: Path) -> dict[str, Any]:
-    """Parsed and checked ``model.json``."""
+def read_meta(path: Path) -> dict[str, Any]:
+    """Parsed ``model.json``, checked for format, version (none newer than this program) and keys."""
     try:
         meta = json.loads(path.read_text(encoding="utf-8"))
     except FileNotFoundError:
@@ -150,7 +150,7 @@ def load_model(model_dir: str | Path, device: str = "cpu", with_bank: bool = Tru
     if not folder.is_dir():
         raise ModelFormatError(f"{folder}: not a model folder")
     meta_path = folder / META_FILE
-    meta = _read_meta(meta_path)
+    meta = read_meta(meta_path)
     config = OdmoConfig.from_dict(meta["config"])
     try:
         sk = meta["skeleton"]

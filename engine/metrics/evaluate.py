@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import logging
 from collections.abc import Callable, Sequence
-from typing import Any
+from typing import Any, Protocol
 
 import numpy as np
 import torch
@@ -23,15 +23,37 @@ from engine.metrics.stats import summarize
 from engine.metrics.trajectory import control_targets, end_point_errors, root_travel
 from engine.modelio import LoadedModel
 from engine.motion.motion import Motion
-from engine.train.windows import WindowBatch, crop_windows, prepare_clips
+from engine.motion.skeleton import Skeleton
+from engine.train.windows import PreparedClips, WindowBatch, crop_windows, prepare_clips
 
 log = logging.getLogger(__name__)
 
 EVAL_STRATEGIES = ("mode_preserving", "conventional")
 CONTROL_POINTS = 10  # end points per code (paper: two real ends and eight between them)
 
+GenerateFn = Callable[[np.ndarray, int, np.random.Generator], tuple[np.ndarray, np.ndarray]]
+"""``(actions (A,), n per action, rng) -> (canonical windows (N, T, J, 3), labels (N,))``."""
+ExtraFn = Callable[[np.random.Generator], dict[str, float]]
+"""``rng -> metrics`` added to a repeat's generated row, drawn after the set metrics."""
 
-def check_compatible(loaded: LoadedModel, clips: Sequence[Motion], classifier: Classifier | None) -> None:
+
+class ModelSpec(Protocol):
+    """What ``check_compatible`` reads of a loaded model (ODMO or A2M)."""
+
+    @property
+    def skeleton(self) -> Skeleton: ...
+
+    @property
+    def action_names(self) -> Sequence[str]: ...
+
+    @property
+    def window(self) -> int: ...
+
+    @property
+    def fps(self) -> float: ...
+
+
+def check_compatible(loaded: ModelSpec, clips: Sequence[Motion], classifier: Classifier | None) -> None:
     """ConfigError/DataError (one line) unless clips, model and classifier share skeleton and actions."""
     if not clips:
         raise DataError("the real folder has no clips")
@@ -238,37 +260,37 @@ def evaluate(
     check_compatible(loaded, real_clips, classifier)
     names = list(loaded.action_names)
     prepared = prepare_clips(real_clips, names, loaded.fps, loaded.window)
-    labels = prepared.actions
-    actions = np.unique(labels)
+    actions = np.unique(prepared.actions)
     have_style = all("style" in c.meta for c in real_clips)
     styles = np.array([str(c.meta["style"]) for c in real_clips]) if have_style else None
     held = held_out(loaded, prepared.sources)
     if len(held) == 0:
         log.warning("every real clip is a training clip of the model; reconstruction is on training clips")
-    real_runs, gen_runs = [], []
-    for r in range(repeats):
-        if cancel is not None and cancel():
-            raise CancelledError("evaluation cancelled")
-        rng = np.random.default_rng([seed, r])
-        sets = [crop_windows(prepared, _pick(labels, actions, n_per_action, rng), rng) for _ in range(2)]
-        ref = _reference(sets[1], classifier)
-        real_runs.append(
-            _set_metrics(sets[0].joints, sets[0].mask, sets[0].actions, ref, classifier, names, rng)
-        )
-        ref = _reference(sets[0], classifier)
-        gen, gen_labels = _generate(loaded, actions, n_per_action, strategy, rng)
-        gen_metrics = _set_metrics(gen, None, gen_labels, ref, classifier, names, rng)
-        recon_idx = held if len(held) else np.arange(len(real_clips))
-        gen_metrics["reconstruction_error_m"] = reconstruction_error(
-            loaded, crop_windows(prepared, recon_idx, rng)
-        )
-        every = crop_windows(prepared, np.arange(len(real_clips)), rng)
-        n_codes = max(1, n_per_action // CONTROL_POINTS)
-        gen_metrics.update(_model_metrics(loaded, every, styles, classifier, strategy, n_codes, rng))
-        gen_runs.append(gen_metrics)
-        log.info("evaluation repeat %d/%d done", r + 1, repeats)
-        if progress is not None:
-            progress("evaluating", (r + 1) / repeats)
+    recon_idx = held if len(held) else np.arange(len(real_clips))
+    every_idx = np.arange(len(real_clips))
+    n_codes = max(1, n_per_action // CONTROL_POINTS)
+
+    def generate(wanted: np.ndarray, n: int, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+        return _generate(loaded, wanted, n, strategy, rng)
+
+    def model_metrics(rng: np.random.Generator) -> dict[str, float]:
+        out = {"reconstruction_error_m": reconstruction_error(loaded, crop_windows(prepared, recon_idx, rng))}
+        every = crop_windows(prepared, every_idx, rng)
+        out.update(_model_metrics(loaded, every, styles, classifier, strategy, n_codes, rng))
+        return out
+
+    real_runs, gen_runs = evaluate_sets(
+        prepared,
+        classifier,
+        generate,
+        names=names,
+        repeats=repeats,
+        n_per_action=n_per_action,
+        seed=seed,
+        extra=model_metrics,
+        progress=progress,
+        cancel=cancel,
+    )
     meta = {
         "model": str(loaded.path),
         "classifier": None if classifier is None else str(classifier.path),
@@ -286,6 +308,50 @@ def evaluate(
         "ci": "95% interval 1.96·s/√n over repeats",
     }
     return {"real": summarize(real_runs), "generated": summarize(gen_runs), "meta": meta}
+
+
+def evaluate_sets(
+    prepared: PreparedClips,
+    classifier: Classifier | None,
+    generate: GenerateFn,
+    *,
+    names: list[str],
+    repeats: int,
+    n_per_action: int,
+    seed: int,
+    extra: ExtraFn | None = None,
+    progress: Callable[[str, float], None] | None = None,
+    cancel: Callable[[], bool] | None = None,
+) -> tuple[list[dict[str, float]], list[dict[str, float]]]:
+    """Per-repeat metric rows ``(real, generated)`` of real set A against B and generated motions against A.
+
+    Repeat r uses ``numpy.random.default_rng([seed, r])`` for, in this order: real sets A and B
+    (``n_per_action`` windows per action each), A's set metrics, ``generate(actions, n_per_action, rng)``,
+    the generated set's metrics, then ``extra(rng)``, whose metrics join the generated row. Any model
+    evaluated with the same clips, classifier and seed thus gets the same real row and the same set A.
+    """
+    labels = prepared.actions
+    actions = np.unique(labels)
+    real_runs, gen_runs = [], []
+    for r in range(repeats):
+        if cancel is not None and cancel():
+            raise CancelledError("evaluation cancelled")
+        rng = np.random.default_rng([seed, r])
+        sets = [crop_windows(prepared, _pick(labels, actions, n_per_action, rng), rng) for _ in range(2)]
+        ref = _reference(sets[1], classifier)
+        real_runs.append(
+            _set_metrics(sets[0].joints, sets[0].mask, sets[0].actions, ref, classifier, names, rng)
+        )
+        ref = _reference(sets[0], classifier)
+        gen, gen_labels = generate(actions, n_per_action, rng)
+        gen_metrics = _set_metrics(gen, None, gen_labels, ref, classifier, names, rng)
+        if extra is not None:
+            gen_metrics.update(extra(rng))
+        gen_runs.append(gen_metrics)
+        log.info("evaluation repeat %d/%d done", r + 1, repeats)
+        if progress is not None:
+            progress("evaluating", (r + 1) / repeats)
+    return real_runs, gen_runs
 
 
 def _reference(batch: WindowBatch, classifier: Classifier | None) -> dict[str, Any]:

@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import csv
-import io
 import logging
 import math
 import platform
@@ -18,12 +16,11 @@ import torch
 from engine import __version__
 from engine.a2m_io import save_a2m
 from engine.errors import CancelledError, ConfigError, ModelFormatError
-from engine.fileio import atomic_write_text
 from engine.model.a2m import A2M_LOSS_TERMS, A2mConfig, A2mModel, a2m_losses
 from engine.modelio import resolve_device
 from engine.motion.motion import Motion
 from engine.train.checkpoint import checkpoint_path, load_checkpoint, save_checkpoint
-from engine.train.loop import LOG_FILE, TrainProgress, TrainResult
+from engine.train.loop import LOG_FILE, TrainProgress, TrainResult, write_log
 from engine.train.pairs import PairSampler, split_clips
 from engine.train.windows import WindowBatch, crop_windows, prepare_clips
 
@@ -46,15 +43,6 @@ def _losses(
     actions = torch.from_numpy(np.asarray(batch.actions, np.int64)).to(device)
     out = model(joints, actions, teacher=teacher, generator=generator)
     return a2m_losses(model.config, joints, mask, out)
-
-
-def _write_log(path: Path, rows: list[dict[str, float]]) -> None:
-    """The per-epoch CSV log (atomically)."""
-    buffer = io.StringIO()
-    writer = csv.DictWriter(buffer, fieldnames=list(rows[0]), lineterminator="\n")
-    writer.writeheader()
-    writer.writerows(rows)
-    atomic_write_text(path, buffer.getvalue())
 
 
 def train_a2m(
@@ -166,14 +154,13 @@ def train_a2m(
         row |= {"seconds": epoch_seconds, "windows_per_s": steps * config.batch_size / epoch_seconds}
         rows.append(row)
         if (epoch + 1) % checkpoint_every == 0 or epoch + 1 == config.epochs:
-            _write_log(out / LOG_FILE, rows)
+            write_log(out / LOG_FILE, rows)
             extra = {"identity": identity, "log": rows, "train_seconds": train_seconds}
             save_checkpoint(
                 ckpt, epoch=epoch + 1, model=model, optimizer=optimizer, rng=rng, torch_rng=tgen, extra=extra
             )
 
-    if rows:
-        _write_log(out / LOG_FILE, rows)
+    write_log(out / LOG_FILE, rows)
     model.eval()
     provenance = {
         "arch": "a2m",

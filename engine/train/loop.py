@@ -144,8 +144,8 @@ def _validation_set(
     return _Tensors.of(batch, device), torch.from_numpy(same).to(device)
 
 
-def _write_log(path: Path, rows: list[dict[str, float]]) -> None:
-    """The per-epoch CSV log (atomically)."""
+def write_log(path: Path, rows: list[dict[str, float]]) -> None:
+    """Write the per-epoch CSV log (one row per epoch, header from the first) atomically; no rows, no file."""
     if not rows:
         return
     buffer = io.StringIO()
@@ -294,13 +294,13 @@ def train(
         row |= {"seconds": epoch_seconds, "windows_per_s": steps * 2 * n_pairs / epoch_seconds}
         rows.append(row)
         if (epoch + 1) % checkpoint_every == 0 or epoch + 1 == config.epochs:
-            _write_log(out / LOG_FILE, rows)
+            write_log(out / LOG_FILE, rows)
             extra = {"identity": identity, "log": rows, "train_seconds": train_seconds}
             save_checkpoint(
                 ckpt, epoch=epoch + 1, model=model, optimizer=optimizer, rng=rng, torch_rng=tgen, extra=extra
             )
 
-    _write_log(out / LOG_FILE, rows)
+    write_log(out / LOG_FILE, rows)
     model.eval()
     provenance = {
         "data_fingerprint": fingerprint,

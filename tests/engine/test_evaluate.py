@@ -6,14 +6,17 @@ import json
 import math
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 import engine.cli
 from engine.errors import ConfigError
 from engine.metrics.classifier import Classifier, train_classifier
-from engine.metrics.evaluate import evaluate
+from engine.metrics.evaluate import evaluate, evaluate_sets
+from engine.metrics.stats import summarize
 from engine.modelio import load_model
 from engine.motion.motion import Motion
+from engine.train.windows import crop_windows, prepare_clips
 from tests.fixtures.procedural import PROCEDURAL_ACTIONS
 
 REAL_KEYS = {"accuracy", "fid", "diversity", "multimodality", "apd", "n_apd"}
@@ -51,6 +54,35 @@ def test_evaluate_returns_every_metric_finite(
     # two real sets drawn from the same clips: n-APD near 1, FID far below generated-vs-real
     assert result["real"]["n_apd"]["mean"] == pytest.approx(1.0, abs=0.2)
     assert result["real"]["fid"]["mean"] < result["generated"]["fid"]["mean"]
+
+
+def test_evaluate_sets_shares_the_real_row_and_runs_extra_last(
+    tiny_model_dir: Path, procedural_clips: list[Motion]
+) -> None:
+    loaded = load_model(tiny_model_dir)
+    names = list(loaded.action_names)
+    prepared = prepare_clips(procedural_clips, names, loaded.fps, loaded.window)
+    calls: list[str] = []
+
+    def generate(actions: np.ndarray, n: int, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+        calls.append("generate")
+        idx = np.concatenate([np.flatnonzero(prepared.actions == a)[:n] for a in actions])
+        batch = crop_windows(prepared, idx, rng)
+        return np.asarray(batch.joints, np.float32), np.asarray(batch.actions)
+
+    def extra(rng: np.random.Generator) -> dict[str, float]:
+        calls.append("extra")
+        return {"draw": float(rng.random())}
+
+    real, gen = evaluate_sets(
+        prepared, None, generate, names=names, repeats=2, n_per_action=6, seed=5, extra=extra
+    )
+    assert calls == ["generate", "extra"] * 2
+    assert len(real) == len(gen) == 2 and all("draw" in row and "apd" in row for row in gen)
+    again, _ = evaluate_sets(prepared, None, generate, names=names, repeats=2, n_per_action=6, seed=5)
+    assert again == real  # the real row does not depend on what is generated or added
+    odmo = evaluate(loaded, procedural_clips, None, repeats=2, n_per_action=6, seed=5)
+    assert odmo["real"] == summarize(real)
 
 
 def test_mismatched_actions_or_skeleton_fail(tiny_model_dir: Path, procedural_clips: list[Motion]) -> None:

@@ -13,7 +13,7 @@ from safetensors.torch import load_file, save_file
 from engine.errors import ConfigError, ModelFormatError
 from engine.model.config import OdmoConfig
 from engine.model.odmo import OdmoModel
-from engine.modelio import load_model, resolve_device, save_model
+from engine.modelio import load_model, read_meta, resolve_device, save_model
 from tests.fixtures.procedural import PROCEDURAL_ACTIONS, procedural_skeleton
 
 pytestmark = pytest.mark.usefixtures("torch_single_thread")
@@ -72,6 +72,9 @@ def test_strict_loading_errors(tmp_path: Path) -> None:
     meta = json.loads((good / "model.json").read_text())
     (folder := copy("newer")).joinpath("model.json").write_text(json.dumps(meta | {"format_version": 99}))
     _expect(folder, "newer than this program")
+    with pytest.raises(ModelFormatError, match="newer than this program"):
+        read_meta(folder / "model.json")
+    assert read_meta(good / "model.json") == meta
     meta_unknown = meta | {"config": meta["config"] | {"mystery": 3}}
     (folder := copy("unknown")).joinpath("model.json").write_text(json.dumps(meta_unknown))
     _expect(folder, "unknown model config keys: mystery")

@@ -13,7 +13,7 @@ from safetensors.torch import load_file
 from engine.errors import CancelledError, ModelFormatError
 from engine.model.losses import LOSS_TERMS
 from engine.motion.motion import Motion
-from engine.train.loop import TrainProgress, train
+from engine.train.loop import TrainProgress, train, write_log
 from engine.train.pairs import PairSampler, split_clips
 from tests.fixtures.procedural import PROCEDURAL_ACTIONS
 from tests.fixtures.tiny_model import single_thread, tiny_config
@@ -30,6 +30,15 @@ def test_short_training_lowers_every_loss_term(tiny_model_dir: Path) -> None:
         assert last < first, term
         assert np.isfinite(float(rows[-1][f"val_{term}"]))
     assert float(rows[0]["tf_rate"]) == 1.0 > float(rows[-1]["tf_rate"])
+
+
+def test_write_log_writes_a_csv_and_nothing_without_rows(tmp_path: Path) -> None:
+    write_log(tmp_path / "none.csv", [])
+    assert not (tmp_path / "none.csv").exists()
+    rows = [{"epoch": 1, "loss": 0.5}, {"epoch": 2, "loss": 0.25}]
+    write_log(tmp_path / "log.csv", rows)
+    assert (tmp_path / "log.csv").read_text() == "epoch,loss\n1,0.5\n2,0.25\n"
+    assert list(tmp_path.iterdir()) == [tmp_path / "log.csv"]  # no temporary file left behind
 
 
 def test_split_is_by_clip_stratified_and_seeded() -> None:
