@@ -108,24 +108,15 @@ def _write_folder(clips: list[Motion], folder: Path) -> Path:
     return folder
 
 
-def _odmo(argv: list[str], monkeypatch: pytest.MonkeyPatch) -> int:
-    if "engine.cli.eval_commands" not in engine.cli.COMMAND_MODULES:
-        monkeypatch.setattr(
-            engine.cli, "COMMAND_MODULES", (*engine.cli.COMMAND_MODULES, "engine.cli.eval_commands")
-        )
-    return engine.cli.main(argv)
-
-
 def test_cli_train_classifier_and_eval(
     tiny_model_dir: Path,
     procedural_clips: list[Motion],
     tmp_path: Path,
-    monkeypatch: pytest.MonkeyPatch,
     capsys: pytest.CaptureFixture[str],
 ) -> None:
     data = _write_folder(procedural_clips, tmp_path / "real")
     clf = tmp_path / "clf"
-    code = _odmo(
+    code = engine.cli.main(
         [
             "train-classifier",
             "--data",
@@ -136,15 +127,14 @@ def test_cli_train_classifier_and_eval(
             str(clf),
             "--epochs",
             "1",
-        ],
-        monkeypatch,
+        ]
     )
     assert code == 0 and (clf / "classifier.json").is_file() and (clf / "classifier.safetensors").is_file()
     assert "held-out accuracy" in capsys.readouterr().out
     out = tmp_path / "eval.json"
     argv = ["eval", "--model", str(tiny_model_dir), "--real", str(data), "--labels", "labels.csv"]
     argv += ["--classifier", str(clf), "--repeats", "2", "--n-per-action", "10", "--json", str(out)]
-    assert _odmo(argv, monkeypatch) == 0
+    assert engine.cli.main(argv) == 0
     table = capsys.readouterr().out
     assert "fid" in table and "style_nmi" in table
     result = json.loads(out.read_text())
@@ -157,7 +147,6 @@ def test_cli_errors_are_one_line(
     tiny_model_dir: Path,
     procedural_clips: list[Motion],
     tmp_path: Path,
-    monkeypatch: pytest.MonkeyPatch,
     capsys: pytest.CaptureFixture[str],
 ) -> None:
     keep = list(range(procedural_clips[0].n_joints - 1))
@@ -172,6 +161,6 @@ def test_cli_errors_are_one_line(
         [*base, "--classifier", str(tmp_path / "none")],
         ["eval", "--model", str(data), "--real", str(data)],
     ):
-        assert _odmo(argv, monkeypatch) == 1
+        assert engine.cli.main(argv) == 1
         err = capsys.readouterr().err.strip()
         assert err.startswith("odmo eval: error:") and "\n" not in err
