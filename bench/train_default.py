@@ -47,6 +47,9 @@ def parse_args() -> argparse.Namespace:
     p.add_argument("--out", type=Path, default=DEFAULT_OUT)
     p.add_argument("--work", type=Path, default=Path("runs/bandai2-odmo"), help="checkpoints and logs")
     p.add_argument("--epochs", type=int, default=40)
+    p.add_argument(
+        "--tf-decay-epochs", type=int, help="epochs until teacher forcing reaches its floor (default 2/3)"
+    )
     p.add_argument("--classifier-epochs", type=int, default=20)
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--repeats", type=int, default=10)
@@ -69,7 +72,7 @@ def main() -> int:
         n_actions=len(names),
         n_joints=dataset.skeleton.n_joints,
         epochs=args.epochs,
-        tf_decay_epochs=max(1, round(TF_DECAY_SHARE * args.epochs)),
+        tf_decay_epochs=args.tf_decay_epochs or max(1, round(TF_DECAY_SHARE * args.epochs)),
     )
     work = args.work
     started = time.time()
