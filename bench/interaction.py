@@ -8,7 +8,8 @@ Run under X (or ``xvfb-run -a -s "-screen 0 1920x1080x24"``)::
   result back on the GUI thread, state update, ``set_poses``), excluding the GPU draw; aim < 30 ms.
 - playback frame: one timeline step (poses of every skeleton set) plus a synchronous render.
 - map redraw: ``LatentMap.set_points`` of N random points plus a synchronous repaint.
-- cold start: process start to the first paint of the map with the model's points.
+- cold start: process start to the first paint of the map with the model's points, and to the model
+  being loaded (decoding enabled), in fresh processes.
 """
 
 from __future__ import annotations
@@ -29,6 +30,7 @@ from PySide6.QtCore import QEventLoop, QSettings, QTimer
 from PySide6.QtWidgets import QApplication
 
 from explorer.app import DEFAULT_MODEL, create_explorer
+from explorer.map_layers import category_colors, scalar_colors
 
 _LOOP: list[QEventLoop] = []
 
@@ -54,21 +56,30 @@ def _median_ms(samples: list[float]) -> float:
     return 1000.0 * statistics.median(samples)
 
 
-def bench_drag(app: QApplication, explorer, repeats: int) -> dict:
-    """Median ms from dragMoved to the new pose set in the viewport."""
+def _settle(app: QApplication, seconds: float) -> None:
+    """Process events for ``seconds`` (lets the previous update's draw finish, like the gap between
+    two mouse-move events)."""
+    end = time.perf_counter() + seconds
+    _wait(app, lambda: time.perf_counter() > end)
+
+
+def bench_drag(app: QApplication, explorer, repeats: int, gap_s: float = 0.03) -> dict:
+    """Median ms from dragMoved to the new pose set in the viewport (moves ``gap_s`` apart, playing)."""
     c, lmap = explorer.controller, explorer.window.latent_map
     emb = c.state.embedding
     a, b = 0, int(np.argmax(np.linalg.norm(emb - emb[0], axis=1)))
     lmap.dragStarted.emit(a)
-    times = []
+    times, decode = [], []
     for k in range(repeats):
         xy = emb[a] + (k + 0.5) / repeats * (emb[b] - emb[a])
         seen = []
         c.shownChanged.connect(lambda s=seen: s.append(time.perf_counter()))
+        _settle(app, gap_s)
         start = time.perf_counter()
         lmap.dragMoved.emit(float(xy[0]), float(xy[1]))
         _wait(app, lambda s=seen: bool(s))
         times.append(seen[0] - start)
+        decode.append(c.decoder.last_run_s)
         c.shownChanged.disconnect()
     lmap.dragFinished.emit(float(emb[a][0]), float(emb[a][1]))
     _wait(app, lambda: not c.tasks.active)
@@ -78,6 +89,7 @@ def bench_drag(app: QApplication, explorer, repeats: int) -> dict:
         "measure": "drag → pose set (decode + update, no GPU draw)",
         "n": repeats,
         "median_ms": _median_ms(times),
+        "decode_in_worker_ms": _median_ms(decode),
     }
 
 
@@ -105,13 +117,20 @@ def bench_playback(app: QApplication, explorer, n_skeletons: int, frames: int) -
     }
 
 
-def bench_map(app: QApplication, explorer, n_points: int, repeats: int) -> dict:
-    """Median ms to set N points on the map and repaint it synchronously."""
+def bench_map(app: QApplication, explorer, n_points: int, repeats: int, color_by: str) -> dict:
+    """Median ms to set N points on the map, coloured as the app colours them, and repaint it.
+
+    ``color_by`` "action": 12 categorical colours; "motion energy": the app's scalar colouring
+    (``SCALAR_LEVELS`` steps). The widget renders one symbol image per distinct colour, so N
+    distinct colours (e.g. random ones) cost ~0.4 s for 3k points.
+    """
     lmap = explorer.window.latent_map
     rng = np.random.default_rng(0)
     xy = rng.standard_normal((n_points, 2))
-    colors = rng.random((n_points, 4))
-    colors[:, 3] = 1.0
+    if color_by == "action":
+        colors = category_colors(12)[rng.integers(0, 12, n_points)]
+    else:
+        colors = scalar_colors(rng.gamma(2.0, 0.5, n_points))
     ids = np.arange(n_points)
     times = []
     for _ in range(repeats):
@@ -119,25 +138,34 @@ def bench_map(app: QApplication, explorer, n_points: int, repeats: int) -> dict:
         lmap.set_points(xy, colors, ids)
         lmap.plot.viewport().repaint()
         times.append(time.perf_counter() - start)
+    explorer.controller._drawn = None
     explorer.controller._redraw_map(explorer.controller.state.embedding)
-    return {"measure": f"map redraw, {n_points:,} points", "n": repeats, "median_ms": _median_ms(times)}
+    return {
+        "measure": f"map redraw, {n_points:,} points by {color_by}",
+        "n": repeats,
+        "median_ms": _median_ms(times),
+    }
 
 
 def cold_start_child(model: Path, spawned: float) -> None:
-    """Child process: open the explorer and print seconds since ``spawned`` at the first map paint."""
+    """Child process: open the explorer as ``odmo-explorer`` does; print seconds since ``spawned`` at
+    the first paint of the map with points on it, then at the model being loaded."""
     app = QApplication.instance() or QApplication(sys.argv[:1])
     explorer = create_explorer(model, None, QSettings("/dev/null", QSettings.Format.IniFormat))
+    painted: list[float] = []
+    explorer.window.mapPainted.connect(lambda: painted.append(time.time() - spawned))
     explorer.window.show()
+    _wait(app, lambda: bool(painted), timeout=120)
     _wait(app, lambda: explorer.controller.state.embedding is not None, timeout=120)
-    explorer.window.latent_map.plot.viewport().repaint()
-    print(f"{time.time() - spawned:.3f}")
+    loaded = time.time() - spawned
+    print(f"{painted[0]:.3f} {loaded:.3f}")
     explorer.close()
     QTimer.singleShot(0, app.quit)
 
 
-def bench_cold_start(model: Path, repeats: int) -> dict:
-    """Median seconds from process start to first map paint, over ``repeats`` fresh processes."""
-    times = []
+def bench_cold_start(model: Path, repeats: int) -> list[dict]:
+    """Median ms from process start to first map paint and to the model loaded, ``repeats`` processes."""
+    paint, loaded = [], []
     for _ in range(repeats):
         out = subprocess.run(
             [sys.executable, __file__, "--model", str(model), "--cold-start-child", str(time.time())],
@@ -145,8 +173,13 @@ def bench_cold_start(model: Path, repeats: int) -> dict:
             capture_output=True,
             text=True,
         )
-        times.append(float(out.stdout.strip().splitlines()[-1]))
-    return {"measure": "cold start → first map paint", "n": repeats, "median_ms": _median_ms(times)}
+        first, ready = (float(v) for v in out.stdout.strip().splitlines()[-1].split())
+        paint.append(first)
+        loaded.append(ready)
+    return [
+        {"measure": "cold start → first map paint", "n": repeats, "median_ms": _median_ms(paint)},
+        {"measure": "cold start → model loaded (decoding on)", "n": repeats, "median_ms": _median_ms(loaded)},
+    ]
 
 
 def main() -> int:
@@ -157,24 +190,38 @@ def main() -> int:
     parser.add_argument("--cold-starts", type=int, default=3)
     parser.add_argument("--map-sizes", type=int, nargs="+", default=[3_000, 30_000])
     parser.add_argument("--cold-start-child", type=float, help=argparse.SUPPRESS)
+    parser.add_argument(
+        "--only", nargs="+", choices=("drag", "playback", "map", "cold"), help="run only these measurements"
+    )
     parser.add_argument("--no-record", action="store_true", help="print only")
     args = parser.parse_args()
     if args.cold_start_child is not None:
         cold_start_child(args.model, args.cold_start_child)
         return 0
 
-    import torch
+    only = set(args.only or ("drag", "playback", "map", "cold"))
+    rows: list[dict] = []
+    if only - {"cold"}:
+        import torch
 
-    torch.set_num_threads(1)
-    app = QApplication.instance() or QApplication(sys.argv[:1])
-    explorer = create_explorer(args.model, None, QSettings("/dev/null", QSettings.Format.IniFormat))
-    explorer.window.show()
-    _wait(app, lambda: explorer.controller.state.embedding is not None, timeout=120)
-    rows = [bench_drag(app, explorer, args.repeats)]
-    rows += [bench_playback(app, explorer, n, args.repeats) for n in (1, 10)]
-    rows += [bench_map(app, explorer, n, max(3, args.repeats // 5)) for n in args.map_sizes]
-    explorer.close()
-    rows.append(bench_cold_start(args.model, args.cold_starts))
+        torch.set_num_threads(1)
+        app = QApplication.instance() or QApplication(sys.argv[:1])
+        explorer = create_explorer(args.model, None, QSettings("/dev/null", QSettings.Format.IniFormat))
+        explorer.window.show()
+        _wait(app, lambda: explorer.controller.state.embedding is not None, timeout=120)
+        if "drag" in only:
+            rows.append(bench_drag(app, explorer, args.repeats))
+        if "playback" in only:
+            rows += [bench_playback(app, explorer, n, args.repeats) for n in (1, 10)]
+        if "map" in only:
+            rows += [
+                bench_map(app, explorer, n, max(3, args.repeats // 5), color_by)
+                for n in args.map_sizes
+                for color_by in ("action", "motion energy")
+            ]
+        explorer.close()
+    if "cold" in only:
+        rows += bench_cold_start(args.model, args.cold_starts)
     for row in rows:
         print(row)
     if not args.no_record:

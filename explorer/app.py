@@ -6,8 +6,8 @@ import argparse
 import logging
 import sys
 import time
-from collections.abc import Sequence
-from dataclasses import dataclass
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
 from pathlib import Path
 
 from PySide6.QtCore import QSettings, QTimer
@@ -15,6 +15,7 @@ from PySide6.QtWidgets import QApplication
 
 DEFAULT_MODEL = Path(__file__).resolve().parents[1] / "resources" / "models" / "bandai2-odmo"
 SCREENSHOT_IDLE_TIMEOUT_S = 120.0
+START_FALLBACK_MS = 1000  # start loading even if the map has not been painted by then
 
 log = logging.getLogger(__name__)
 
@@ -44,13 +45,29 @@ def build_parser() -> argparse.ArgumentParser:
 
 @dataclass
 class Explorer:
-    """A running explorer: the window, its controller and its state."""
+    """A running explorer: the window, its controller, and the work waiting for the map's first paint."""
 
     window: object
     controller: object
+    pending: list[Callable[[], None]] = field(default_factory=list)
+    closed: bool = False
+
+    @property
+    def waiting(self) -> bool:
+        """True until the work deferred to after the first paint has been started."""
+        return bool(self.pending)
+
+    def start_deferred(self) -> None:
+        """Start the work deferred to after the map's first paint (model and data loading, 3-D view)."""
+        jobs, self.pending = self.pending, []
+        if not self.closed:
+            for job in jobs:
+                job()
 
     def close(self) -> None:
         """Stop the workers and close the window (saving its layout)."""
+        self.closed = True
+        self.pending = []
         self.controller.shutdown()
         self.window.close()
 
@@ -65,13 +82,20 @@ def open_settings(path: Path | None) -> QSettings:
 def create_explorer(
     model: Path | None, data: Path | None, settings: QSettings, projection: str = "pca"
 ) -> Explorer:
-    """Build the window and controller and start loading ``model`` (or the bundled one) and ``data``."""
+    """Build the window and controller, paint ``model``'s (or the bundled one's) map, then load it.
+
+    Start-up order, so that the map shows within a second or two: the window, the controller and the
+    map (the bank's stored projection, read with numpy) come first; torch, scikit-learn and the model
+    are loaded in a worker and the 3-D viewport (VTK) is created only after the map's first paint
+    (or ``START_FALLBACK_MS`` at the latest). Clicks decode once the model is loaded.
+    """
     from explorer.controller import Controller
     from explorer.main_window import MainWindow
 
     window = MainWindow(settings)
     controller = Controller(window)
     controller.state.projection = projection
+    explorer = Explorer(window, controller)
     target = model if model is not None else DEFAULT_MODEL
     if model is None and not DEFAULT_MODEL.is_dir():
         window.show_status(
@@ -79,10 +103,16 @@ def create_explorer(
             "File ▸ Open model folder… or start with --model DIR."
         )
     else:
-        controller.open_model(target)
+        controller.show_preview(target)
+        explorer.pending.append(lambda: controller.open_model(target))
     if data is not None:
-        controller.open_data(data)
-    return Explorer(window, controller)
+        explorer.pending.append(lambda: controller.open_data(data))
+    explorer.pending.append(
+        lambda: QTimer.singleShot(0, window, lambda: window.isVisible() and window.viewport)
+    )
+    window.mapPainted.connect(explorer.start_deferred)
+    QTimer.singleShot(START_FALLBACK_MS, window, explorer.start_deferred)
+    return explorer
 
 
 def take_screenshot(explorer: Explorer, path: Path) -> None:
@@ -102,7 +132,7 @@ def _schedule_screenshot(
     deadline = time.monotonic() + after + SCREENSHOT_IDLE_TIMEOUT_S
 
     def attempt() -> None:
-        busy = explorer.controller.tasks.active
+        busy = explorer.waiting or explorer.controller.tasks.active
         if busy and time.monotonic() < deadline:
             QTimer.singleShot(200, attempt)
             return

@@ -1,23 +1,22 @@
-"""The controller: the one place that connects widget signals, the app state and engine calls."""
+"""The controller: the one place that connects widget signals, the app state and engine calls.
+
+Torch, scikit-learn and scipy (``engine.generate``, ``engine.modelio``, ``engine.latent``) are imported
+where they are used, not here: the window and the map's preview come up before the model is loaded,
+and the model-loading task brings them in off the GUI thread.
+"""
 
 from __future__ import annotations
 
 import logging
 from collections.abc import Callable, Sequence
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
-from PySide6.QtCore import QObject, Signal
+from PySide6.QtCore import QObject, QTimer, Signal
 from PySide6.QtWidgets import QFileDialog
 
-from engine import generate
 from engine.errors import ConfigError, ModelFormatError, OdmoError
-from engine.latent.bank import LatentBank
-from engine.latent.geometry import points_in_polygon
-from engine.latent.modes import ModeModel
-from engine.latent.projection import Projection, make_projection
-from engine.modelio import LoadedModel, load_model
 from engine.motion.motion import Motion
 from explorer import export
 from explorer.main_window import MainWindow
@@ -28,10 +27,19 @@ from explorer.map_layers import (
     mode_overlays,
     motion_energy,
     point_colors,
+    tooltip_texts,
     tooltips,
 )
+from explorer.preview import BankPreview, read_preview
 from explorer.state import AppState, Decoded, ExtraPoints
 from explorer.workers import Cancel, LatestRunner, Progress, TaskRunner
+
+if TYPE_CHECKING:
+    from engine import generate
+    from engine.latent.bank import LatentBank
+    from engine.latent.modes import ModeModel
+    from engine.latent.projection import Projection
+    from engine.modelio import LoadedModel
 
 log = logging.getLogger(__name__)
 
@@ -39,6 +47,9 @@ MAX_PLAYED = 12  # motions played at once from a selection
 VARIATIONS = 8
 LOCAL_MODE_SAMPLES = 6
 GHOSTS = 4  # faint poses along a single motion (time-lapse trail)
+LIVE_INTERVAL_MS = (
+    150  # during a drag: marker, root path, ghosts, canvas, timeline, status at most this often
+)
 PANEL_STRATEGIES = {"one_mode": "mode"}  # mode panel key -> engine strategy
 
 
@@ -69,6 +80,16 @@ class Controller(QObject):
         self._played: list[Motion] = []
         self._rig: tuple[bytes, int, str] | None = None
         self._model_task = None
+        self._preview: BankPreview | None = None
+        self._drawn: tuple[np.ndarray, np.ndarray] | None = None  # (embedding, colours) on the map
+        self._tips: tuple[object, list[str]] | None = None  # (bank, its tooltips)
+        # During a drag only the poses follow every decode; the rest is throttled (see _flush_live).
+        self._live = QTimer(self)
+        self._live.setSingleShot(True)
+        self._live.setInterval(LIVE_INTERVAL_MS)
+        self._live.timeout.connect(self._flush_live)
+        self._live_marker: np.ndarray | None = None
+        self._live_details = False
         self._connect()
 
     # -- wiring --------------------------------------------------------------------------------------
@@ -111,7 +132,7 @@ class Controller(QObject):
         w.variations_action.triggered.connect(self.sample_variations)
         w.fit_mode_action.triggered.connect(self.fit_local_mode)
         w.clear_selection_action.triggered.connect(self.clear_selection)
-        w.reset_camera_action.triggered.connect(w.viewport.reset_camera)
+        w.reset_camera_action.triggered.connect(lambda: w.viewport.reset_camera())
         w.cancel_button.clicked.connect(self.tasks.cancel_all)
 
         self.decoder.finished.connect(self._decoded)
@@ -187,13 +208,49 @@ class Controller(QObject):
 
     # -- model and data ------------------------------------------------------------------------------
 
+    def show_preview(self, path: str | Path) -> bool:
+        """Paint the map of ``path``'s latent bank now (numpy only), before its model is loaded.
+
+        Only while no model is shown; clicks decode once the model is loaded. False when the folder
+        has no readable bank with a stored map (the full load then reports why).
+        """
+        path = Path(path)
+        if self.state.model is not None:
+            return False
+        if self._preview is not None and self._preview.path == path:
+            return True
+        preview = read_preview(path)
+        if preview is None:
+            return False
+        name = self.state.projection if self.state.projection in preview.embeddings else None
+        embedding = preview.embeddings[name or next(iter(preview.embeddings))]
+        names = preview.action_names
+        palette = category_colors(len(names))
+        colors = palette[preview.actions]
+        w = self.window
+        w.latent_map.set_legend(names, [tuple(c) for c in palette])
+        tips = tooltip_texts(preview.sources, preview.actions, names, preview.meta)
+        w.latent_map.set_points(embedding, colors, np.arange(len(embedding)), tips)
+        self._preview, self._drawn = preview, (embedding, colors)
+        w.show_status(
+            f"Loading model {path.name}… the map shows its {len(embedding)} bank codes; "
+            "decoding starts once the model is loaded."
+        )
+        return True
+
     def open_model(self, path: str | Path) -> None:
         """Load a model folder in the background; the current one stays until the new one is ready."""
         path = Path(path)
+        self.show_preview(path)
 
         def job(progress: Progress, _cancel: Cancel) -> LoadedModel:
             progress(f"Loading {path.name}", 0.1)
+            from engine.modelio import load_model
+
+            progress(f"Loading {path.name}", 0.5)
             loaded = load_model(path)
+            import engine.generate  # noqa: F401  (loaded here, off the GUI thread, before the first decode)
+
             if loaded.bank is None:
                 raise ModelFormatError(f"{path}: the model has no latent bank (latent_bank.npz)")
             return loaded
@@ -210,7 +267,10 @@ class Controller(QObject):
         self.state.extra = None
         self.state.marker = None
         self.state.shown = ()
+        if self._projections.get(self.state.projection) is None:
+            self.state.embedding = None  # the old model's map must not stand for the new bank
         self.state.model = loaded
+        self._preview = None
         if self.state.data_dir:
             self.open_data(self.state.data_dir)
 
@@ -250,9 +310,9 @@ class Controller(QObject):
         w.viewport.set_skeletons(loaded.skeleton.parents, 1)
         self._rig = None
         self.state.focus_action = 0
-        self._projection_changed(self.state.projection)
+        # The legend first: set_legend redraws the points, so after set_points it would draw them twice.
         w.latent_map.set_legend(names, [tuple(c) for c in category_colors(len(names))])
-        self._apply_visibility(self.state.hidden_actions)
+        self._projection_changed(self.state.projection)
         self._focus_changed(self.state.focus_action)
         w.setWindowTitle(f"ODMO Explorer — {loaded.path.name}")
         w.show_status(
@@ -277,6 +337,8 @@ class Controller(QObject):
         codes = self.bank.codes
 
         def job(progress: Progress, _cancel: Cancel) -> Projection:
+            from engine.latent.projection import make_projection
+
             progress(f"Computing {name} map of {len(codes)} codes", 0.0)
             return make_projection(name, seed=0).fit(codes)
 
@@ -288,16 +350,34 @@ class Controller(QObject):
         self._run_task(f"Computing {name.upper()} projection", job, done)
 
     def _redraw_map(self, embedding: np.ndarray | None) -> None:
-        if embedding is None or self.state.model is None:
+        if self.state.model is None:
+            return
+        lmap = self.window.latent_map
+        if embedding is None:
+            if self._drawn is not None:
+                lmap.set_points(np.zeros((0, 2)), np.zeros((0, 4)), np.zeros(0, dtype=np.int64))
+                self._drawn = None
             return
         bank = self.bank
         colors = point_colors(bank, self.state.color_by, self._energy)
-        self.window.latent_map.set_points(embedding, colors, np.arange(len(bank.codes)), tooltips(bank))
-        self._apply_visibility(self.state.hidden_actions)
-        self._apply_selection(self.state.selection)
+        drawn = self._drawn
+        if drawn is None or not (np.array_equal(drawn[0], embedding) and np.array_equal(drawn[1], colors)):
+            # (the preview painted at start-up usually is this very map: then nothing is redrawn)
+            lmap.set_points(embedding, colors, np.arange(len(bank.codes)), self._tooltips(bank))
+            self._drawn = (embedding, colors)
+        if self.state.hidden_actions:  # set_points shows every point
+            self._apply_visibility(self.state.hidden_actions)
+        if self.state.selection or drawn is not None:
+            self._apply_selection(self.state.selection)
         self._reproject_extra()
         self._draw_overlays()
         self.window.latent_map.set_marker(self.state.marker)
+
+    def _tooltips(self, bank: LatentBank) -> list[str]:
+        """Hover texts of ``bank``'s codes (built once per bank)."""
+        if self._tips is None or self._tips[0] is not bank:
+            self._tips = (bank, tooltips(bank))
+        return self._tips[1]
 
     def _color_by_changed(self, color_by: str) -> None:
         index = self.window.color_combo.findData(color_by)
@@ -316,6 +396,8 @@ class Controller(QObject):
         loaded, bank = self.loaded, self.bank
 
         def job(progress: Progress, cancel: Cancel) -> np.ndarray:
+            from engine import generate
+
             energy = np.zeros(len(bank.codes))
             done, chunk = 0, 256
             for action in range(len(bank.action_names)):
@@ -472,10 +554,21 @@ class Controller(QObject):
             self.state.marker = xy.astype(np.float64)
         self._decode_code(code, action, f"map point ({xy[0]:.2f}, {xy[1]:.2f})")
 
-    def _decode_code(self, code: np.ndarray, action: int, label: str, end: np.ndarray | None = None) -> int:
-        loaded, bank = self.loaded, self.bank
+    def _decode_code(
+        self,
+        code: np.ndarray | None,
+        action: int,
+        label: str,
+        end: np.ndarray | None = None,
+        xy: np.ndarray | None = None,
+    ) -> int:
+        """Decode ``code`` (or, when None, the inverse projection of map point ``xy``) in the worker."""
+        loaded, bank, projection = self.loaded, self.bank, self.projection
 
         def job() -> tuple[Decoded, ...]:
+            nonlocal code
+            if code is None:
+                code = projection.inverse_transform(np.asarray(xy, np.float64)[None])[0].astype(np.float32)
             e = bank.end_location(code[None], action)[0] if end is None else np.asarray(end, np.float32)
             modes = bank.modes.get(action)
             mode = None if modes is None else int(modes.predict(code[None])[0])
@@ -499,14 +592,17 @@ class Controller(QObject):
         if target is not None:
             code, action, end = self.bank_item(target)
             self._decode_code(code, action, f"drag → #{target}", end)
-        else:
-            code, action = self._code_at(xy)
-            self._decode_code(code, int(self.bank.actions[self._drag_from]), f"drag → ({x:.2f}, {y:.2f})")
-        self.state.marker = xy
+        else:  # the inverse projection runs in the worker too
+            action = int(self.bank.actions[self._drag_from])
+            self._decode_code(None, action, f"drag → ({x:.2f}, {y:.2f})", xy=xy)
+        self._live_marker = xy  # the map marker follows at the throttled rate (a repaint of every point)
+        self._schedule_live()
 
     def drag_finish(self, x: float, y: float) -> None:
         """Leave an interpolation strip from the drag's start to the point (or position) released on."""
         start, self._drag_from = self._drag_from, None
+        if self._live_marker is not None:
+            self.state.marker, self._live_marker = self._live_marker, None
         if start is None or self.projection is None:
             return
         xy = np.array([x, y])
@@ -546,6 +642,8 @@ class Controller(QObject):
         loaded, steps = self.loaded, self.window.steps_spin.value()
 
         def job() -> tuple[Decoded, ...]:
+            from engine import generate
+
             samples = generate.interpolate(loaded, code_a, code_b, action, steps, end_a=end_a, end_b=end_b)
             return tuple(
                 Decoded(s.motion, f"{what} step {k + 1}/{steps}", s.code, s.action, s.end, s.mode)
@@ -558,6 +656,8 @@ class Controller(QObject):
         """Select the visible bank codes inside ``polygon`` (M, 2)."""
         if self.state.model is None or self.state.embedding is None:
             return
+        from engine.latent.geometry import points_in_polygon
+
         inside = points_in_polygon(self.state.embedding, np.asarray(polygon, dtype=np.float64))
         inside &= ~np.isin(self.bank.actions, list(self.state.hidden_actions))
         self.state.selection = tuple(int(i) for i in np.flatnonzero(inside))
@@ -602,6 +702,8 @@ class Controller(QObject):
             return
         centre, action, radius = summary
         loaded, seed = self.loaded, self._new_seed()
+        from engine import generate
+
         self._run_task(
             "Sampling variations",
             lambda _p, _c: generate.neighbours(loaded, centre, action, VARIATIONS, radius, seed),
@@ -614,6 +716,9 @@ class Controller(QObject):
         if len(sel) < 3:
             self.report_error("Cannot fit a local mode", "select at least 3 codes with the lasso")
             return
+        from engine import generate
+        from engine.latent.modes import ModeModel
+
         loaded, bank = self.loaded, self.bank
         action = int(np.bincount(bank.actions[sel]).argmax())
         codes = bank.codes[sel].astype(np.float64)
@@ -654,6 +759,8 @@ class Controller(QObject):
         chosen = None if mode < 0 else int(mode)
 
         def job(_p: Progress, _c: Cancel) -> list[generate.Sample]:
+            from engine import generate
+
             return generate.sample(loaded, action, int(n), seed, strategy, chosen, weights)
 
         self._run_task(
@@ -701,6 +808,8 @@ class Controller(QObject):
         path_xz = np.asarray(path, dtype=np.float64)
 
         def job(progress: Progress, _c: Cancel) -> generate.PathResult:
+            from engine import generate
+
             progress("Optimising a code to follow the path", 0.0)
             return generate.follow_path(loaded, path_xz, action)
 
@@ -718,6 +827,8 @@ class Controller(QObject):
         self.state.shown = items
 
     def _show_motions(self, shown: tuple[Decoded, ...]) -> None:
+        """Put ``shown`` in the viewport: the poses and end marker at once; during a drag, the rest
+        (root path, ghosts, trajectory canvas, timeline, status) at most every ``DETAILS_INTERVAL_MS``."""
         w = self.window
         if not shown:
             return
@@ -725,22 +836,55 @@ class Controller(QObject):
         sequence = self.state.layout == "sequence" and len(motions) > 1
         played = [_concatenate(motions)] if sequence else motions
         self._played = played
+        live = self._drag_from is not None
         rig = (played[0].skeleton.parents.tobytes(), len(played), self.state.layout)
         if rig != self._rig:  # rebuilding the actors is the slow part of an update: only when needed
-            self._rig = rig
+            self._rig, live = rig, False
             w.viewport.set_skeletons(played[0].skeleton.parents, len(played))
             w.viewport.set_layout("overlay" if self.state.layout == "overlay" else "side_by_side", 1.0)
+        w.viewport.set_end_marker(None if shown[0].end is None else np.asarray(shown[0].end, np.float64))
+        if live:  # keep playing from the current frame; the timeline catches up with the details
+            self._set_frame(self.state.frame)
+            self._live_details = True
+            self._schedule_live()
+        else:
+            self._live_details = False
+            self._show_details(shown, restart=True)
+        self.shownChanged.emit()
+
+    def _schedule_live(self) -> None:
+        """Flush the throttled part of a drag's updates within ``LIVE_INTERVAL_MS`` (at most that often)."""
+        if not self._live.isActive():
+            self._live.start()
+
+    def _flush_live(self) -> None:
+        """The throttled part of a drag: the map marker and the details of the motion shown."""
+        if self._live_marker is not None:
+            self.state.marker, self._live_marker = self._live_marker, None
+        if self._live_details:
+            self._live_details = False
+            self._show_details(self.state.shown, restart=False)
+
+    def _show_details(self, shown: tuple[Decoded, ...], restart: bool) -> None:
+        """Root path, ghost trail, trajectory canvas, timeline and status text of ``shown``;
+        ``restart`` plays from frame 0."""
+        w, played = self.window, self._played
+        if not shown or not played:
+            return
         first = played[0]
         w.viewport.set_trajectory(first.joints[:, first.skeleton.root])
-        w.viewport.set_end_marker(None if shown[0].end is None else np.asarray(shown[0].end, np.float64))
         ghosts = first.joints[np.linspace(0, first.n_frames - 1, GHOSTS).round().astype(int)]
         w.viewport.set_ghosts(ghosts if len(played) == 1 else None)
         w.trajectory.set_generated(_root_xz(first), None)
         length = max(m.n_frames for m in played)
+        frame = 0 if restart else min(self.state.frame, length - 1)
         w.timeline.set_length(length, first.fps)
-        self.state.frame = 0
-        self._set_frame(0)
-        w.timeline.play()
+        if restart:
+            w.timeline.set_frame(0)
+        self.state.frame = frame
+        self._set_frame(frame)
+        if restart or not w.timeline.is_playing():
+            w.timeline.play()
         head = shown[0]
         more = f" (+{len(shown) - 1} more)" if len(shown) > 1 else ""
         mode = "" if head.mode is None else f" · mode {head.mode}"
@@ -749,7 +893,6 @@ class Controller(QObject):
             f"Playing {head.label}{more} · {head.motion.action}{mode}{end} · "
             f"{first.n_frames} frames @ {first.fps:g} fps"
         )
-        self.shownChanged.emit()
 
     def _set_frame(self, frame: int) -> None:
         played = self._played
@@ -849,6 +992,8 @@ def _decode_one(
     loaded: LoadedModel, code: np.ndarray, action: int, end: np.ndarray | None, mode: int | None
 ) -> Motion:
     """``generate.decode`` with the end location passed as one row (a (3,) end gets broadcast read-only)."""
+    from engine import generate
+
     rows = None if end is None else np.array(end, dtype=np.float32).reshape(1, -1)
     return generate.decode(loaded, np.array(code, dtype=np.float32), action, rows, mode=mode)
 

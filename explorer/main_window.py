@@ -1,12 +1,16 @@
 """The main window: the latent map in the centre, dockable panels around it, menus, toolbar, status bar.
 
 The window assembles views and exposes their controls; it holds no state and calls no engine code
-(the controller connects both sides).
+(the controller connects both sides). The 3-D viewport (VTK, the slow part of opening the window) is
+created on first use of :attr:`MainWindow.viewport`; the app asks for it right after the map's first
+paint (``mapPainted``).
 """
 
 from __future__ import annotations
 
-from PySide6.QtCore import QByteArray, QSettings, Qt
+from typing import TYPE_CHECKING
+
+from PySide6.QtCore import QByteArray, QEvent, QObject, QSettings, Qt, QTimer, Signal
 from PySide6.QtGui import QCloseEvent, QKeySequence
 from PySide6.QtWidgets import (
     QComboBox,
@@ -26,7 +30,9 @@ from widgets.latent_map import LatentMap
 from widgets.mode_panel import ModePanel
 from widgets.timeline import Timeline
 from widgets.trajectory_canvas import TrajectoryCanvas
-from widgets.viewport import SkeletonViewport
+
+if TYPE_CHECKING:
+    from widgets.viewport import SkeletonViewport
 
 SETTINGS_GEOMETRY = "window/geometry"
 SETTINGS_STATE = "window/state"
@@ -35,7 +41,14 @@ PROJECTION_LABELS = {"pca": "PCA", "tsne": "t-SNE", "umap": "UMAP"}
 
 
 class MainWindow(QMainWindow):
-    """ODMO Explorer's window; its dock layout is saved to and restored from ``settings``."""
+    """ODMO Explorer's window; its dock layout is saved to and restored from ``settings``.
+
+    Signals: ``mapPainted()`` once, after the first paint of the map with points on it;
+    ``viewportCreated()`` once the 3-D viewport exists.
+    """
+
+    mapPainted = Signal()  # noqa: N815
+    viewportCreated = Signal()  # noqa: N815
 
     def __init__(self, settings: QSettings, parent: QWidget | None = None) -> None:
         super().__init__(parent)
@@ -46,13 +59,17 @@ class MainWindow(QMainWindow):
         self.resize(1500, 900)
 
         self.latent_map = LatentMap()
-        self.viewport = SkeletonViewport()
+        self._viewport: SkeletonViewport | None = None
+        self._viewport_placeholder = QLabel("Opening the 3-D view…")
+        self._viewport_placeholder.setAlignment(Qt.AlignCenter)
         self.timeline = Timeline()
         self.mode_panel = ModePanel()
         self.trajectory = TrajectoryCanvas()
         self.setCentralWidget(self.latent_map)
 
-        self.viewport_dock = self._dock("Motion (3D)", "dock_viewport", self.viewport, Qt.RightDockWidgetArea)
+        self.viewport_dock = self._dock(
+            "Motion (3D)", "dock_viewport", self._viewport_placeholder, Qt.RightDockWidgetArea
+        )
         self.timeline_dock = self._dock("Timeline", "dock_timeline", self.timeline, Qt.BottomDockWidgetArea)
         self.mode_dock = self._dock("Modes", "dock_modes", self.mode_panel, Qt.LeftDockWidgetArea)
         self.trajectory_dock = self._dock(
@@ -67,6 +84,24 @@ class MainWindow(QMainWindow):
         self._build_status_bar()
         self._default_state = self.saveState(_LAYOUT_VERSION)
         self.restore_layout()
+        self._paint_watch = _FirstPaint(self)
+        self.latent_map.plot.viewport().installEventFilter(self._paint_watch)
+
+    @property
+    def viewport(self) -> SkeletonViewport:
+        """The 3-D viewport, created (VTK loaded) on first use."""
+        if self._viewport is None:
+            from widgets.viewport import SkeletonViewport
+
+            self._viewport = SkeletonViewport()
+            self.viewport_dock.setWidget(self._viewport)
+            self._viewport_placeholder.deleteLater()
+            self.viewportCreated.emit()
+        return self._viewport
+
+    def has_viewport(self) -> bool:
+        """True once the 3-D viewport exists."""
+        return self._viewport is not None
 
     # -- construction ---------------------------------------------------------------------------------
 
@@ -224,3 +259,19 @@ class MainWindow(QMainWindow):
         """Save the layout, then close."""
         self.save_layout()
         super().closeEvent(event)
+
+
+class _FirstPaint(QObject):
+    """Event filter on the map's viewport: emits the window's ``mapPainted`` after the first paint with
+    points drawn, then removes itself."""
+
+    def __init__(self, window: MainWindow) -> None:
+        super().__init__(window)
+        self._window = window
+
+    def eventFilter(self, watched: QObject, event: QEvent) -> bool:  # noqa: N802
+        """Let the paint happen; once points were painted, report it from the next event-loop pass."""
+        if event.type() == QEvent.Type.Paint and len(self._window.latent_map.visible_rows()):
+            watched.removeEventFilter(self)
+            QTimer.singleShot(0, self._window.mapPainted.emit)
+        return False

@@ -1,14 +1,21 @@
-"""What the latent map draws for a bank: point colours, tooltips, mode overlays (pure functions, no Qt)."""
+"""What the latent map draws for a bank: point colours, tooltips, mode overlays (pure functions, no Qt).
+
+Imports only numpy and the widgets' palette at module level, so the map can be painted at start-up
+before scikit-learn, scipy and torch are loaded; the geometry helpers are imported where they are used.
+"""
 
 from __future__ import annotations
 
-import numpy as np
-from pyqtgraph import colormap
+from collections.abc import Sequence
+from typing import TYPE_CHECKING, Any
 
-from engine.latent.bank import LatentBank
-from engine.latent.geometry import convex_hull, gaussian_ellipse, project_gaussian
-from engine.latent.projection import PCAProjection, Projection
+import numpy as np
+
 from widgets._colors import palette_rgb
+
+if TYPE_CHECKING:
+    from engine.latent.bank import LatentBank
+    from engine.latent.projection import Projection
 
 
 def category_colors(n: int) -> np.ndarray:
@@ -33,11 +40,18 @@ def motion_energy(joints: np.ndarray, fps: float) -> np.ndarray:
     return speed.mean(axis=(1, 2))
 
 
-def scalar_colors(values: np.ndarray) -> np.ndarray:
-    """(N, 4) float RGBA viridis colours of ``values`` scaled between their 2nd and 98th percentiles."""
+SCALAR_LEVELS = 64  # distinct colours of a scalar colouring: the map draws one symbol image per colour
+
+
+def scalar_colors(values: np.ndarray, levels: int = SCALAR_LEVELS) -> np.ndarray:
+    """(N, 4) float RGBA viridis colours of ``values`` scaled between their 2nd and 98th percentiles,
+    in ``levels`` steps (N distinct colours make the scatter render N symbol images: 3k take ~0.4 s)."""
     values = np.asarray(values, dtype=np.float64)
+    from pyqtgraph import colormap
+
     lo, hi = np.percentile(values, [2, 98]) if len(values) else (0.0, 1.0)
     scaled = np.clip((values - lo) / max(hi - lo, 1e-12), 0.0, 1.0)
+    scaled = np.round(scaled * (levels - 1)) / (levels - 1)
     return np.asarray(colormap.get("viridis").map(scaled, mode="float"), dtype=np.float64)
 
 
@@ -57,11 +71,18 @@ def point_colors(bank: LatentBank, color_by: str, energy: np.ndarray | None) -> 
 
 def tooltips(bank: LatentBank) -> list[str]:
     """One hover text per bank code: clip name, action and style when known."""
+    return tooltip_texts(bank.sources, bank.actions, bank.action_names, bank.meta)
+
+
+def tooltip_texts(
+    sources: Sequence[str], actions: np.ndarray, action_names: Sequence[str], meta: Sequence[dict[str, Any]]
+) -> list[str]:
+    """One hover text per code from its source (N,), action (N,) and meta dicts: clip, action, style."""
     texts = []
-    for i, source in enumerate(bank.sources):
-        style = bank.meta[i].get("style") if i < len(bank.meta) else None
+    for i, source in enumerate(sources):
+        style = meta[i].get("style") if i < len(meta) else None
         extra = f" · {style}" if style else ""
-        texts.append(f"{source}\n{bank.action_names[int(bank.actions[i])]}{extra} · #{i}")
+        texts.append(f"{source}\n{action_names[int(actions[i])]}{extra} · #{i}")
     return texts
 
 
@@ -73,6 +94,9 @@ def mode_overlays(
     Under PCA each mode's Gaussian is projected exactly and drawn as its half-peak ellipse; under the
     non-linear maps, the convex hull of the mode's member codes is drawn.
     """
+    from engine.latent.geometry import convex_hull, gaussian_ellipse, project_gaussian
+    from engine.latent.projection import PCAProjection
+
     modes = bank.modes.get(action)
     if modes is None:
         return [], np.zeros((0, 4))
@@ -93,6 +117,9 @@ def gaussian_outline(
     mean: np.ndarray, cov: np.ndarray, projection: Projection, members_xy: np.ndarray
 ) -> np.ndarray:
     """Outline of one fitted Gaussian: its exact half-peak ellipse under PCA, else its members' hull."""
+    from engine.latent.geometry import convex_hull, gaussian_ellipse, project_gaussian
+    from engine.latent.projection import PCAProjection
+
     if isinstance(projection, PCAProjection):
         mean2, cov2 = project_gaussian(mean, cov, projection.components_, projection.mean_)
         return gaussian_ellipse(mean2, cov2, level=0.5)

@@ -4,13 +4,15 @@ from __future__ import annotations
 
 import operator
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from psygnal import evented
 
-from engine.modelio import LoadedModel
 from engine.motion.motion import Motion
+
+if TYPE_CHECKING:  # engine.modelio loads torch: the state is created before the model is
+    from engine.modelio import LoadedModel
 
 PROJECTIONS = ("pca", "tsne", "umap")
 COLOR_BY = ("action", "mode", "motion energy")

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import logging
 import threading
+import time
 from collections.abc import Callable
 from concurrent.futures import Future, ThreadPoolExecutor
 from typing import Any
@@ -39,6 +40,7 @@ class LatestRunner(QObject):
         self._newest = 0
         self._closed = False
         self.skipped = 0
+        self.last_run_s = 0.0  # seconds the last request that ran took in the worker (for benchmarks)
 
     @property
     def newest(self) -> int:
@@ -61,12 +63,15 @@ class LatestRunner(QObject):
         if stale:
             self.skipped += 1
             return
+        start = time.perf_counter()
         try:
             result = fn(*args)
         except Exception as exc:
             log.debug("request %d failed: %s", request, exc)
             self.failed.emit(request, exc)
             return
+        finally:
+            self.last_run_s = time.perf_counter() - start
         self.finished.emit(request, result)
 
     def wait_idle(self, timeout: float = 10.0) -> None:

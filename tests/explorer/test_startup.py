@@ -1,0 +1,62 @@
+"""Start-up order: the map is painted from the bank (numpy only) before torch, scikit-learn or VTK load."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from engine.latent.bank import LatentBank
+from explorer.preview import read_preview
+from tests.explorer.conftest import Opened
+
+
+def test_preview_reads_the_banks_map(tiny_model_dir: Path) -> None:
+    preview = read_preview(tiny_model_dir)
+    bank = LatentBank.load(tiny_model_dir / "latent_bank.npz")
+    assert preview is not None
+    np.testing.assert_array_equal(preview.actions, bank.actions)
+    assert preview.action_names == bank.action_names
+    np.testing.assert_array_equal(preview.embeddings["pca"], bank.projections["pca"].embedding_)
+
+
+def test_preview_of_a_folder_without_bank_is_none(tmp_path: Path) -> None:
+    assert read_preview(tmp_path) is None
+    (tmp_path / "latent_bank.npz").write_bytes(b"not a zip")
+    assert read_preview(tmp_path) is None
+
+
+def test_window_and_map_need_no_torch_sklearn_or_vtk(tiny_model_dir: Path) -> None:
+    script = (
+        "import sys\n"
+        "from explorer import app, controller, main_window, map_layers, preview\n"
+        f"p = preview.read_preview({str(tiny_model_dir)!r})\n"
+        "map_layers.category_colors(len(p.action_names))[p.actions]\n"
+        "map_layers.tooltip_texts(p.sources, p.actions, p.action_names, p.meta)\n"
+        "heavy = ('torch', 'sklearn', 'umap', 'pyvista', 'vtkmodules', 'engine.generate')\n"
+        "print(' '.join(m for m in heavy if m in sys.modules))\n"
+    )
+    done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.strip() == "", f"imported before the first paint: {done.stdout}"
+
+
+def test_map_is_painted_before_the_model_loads(qtbot, open_explorer, tiny_model_dir: Path) -> None:
+    seen: list[tuple[bool, int]] = []
+    opened: Opened = open_explorer(tiny_model_dir, wait=False)
+    window, c = opened.window, opened.controller
+    if not opened.explorer.waiting:  # painted while the window was being exposed
+        assert len(window.latent_map.visible_rows()) == len(read_preview(tiny_model_dir).actions)
+    else:
+        window.mapPainted.connect(
+            lambda: seen.append((c.state.model is None, len(window.latent_map.visible_rows())))
+        )
+        qtbot.waitUntil(lambda: bool(seen), timeout=10_000)
+        assert seen[0] == (True, len(read_preview(tiny_model_dir).actions))
+    qtbot.waitUntil(lambda: c.state.model is not None, timeout=60_000)
+    qtbot.waitUntil(window.has_viewport, timeout=10_000)
+    assert len(window.latent_map.visible_rows()) == len(c.bank.codes)
+    with qtbot.waitSignal(c.shownChanged, timeout=20_000):
+        c.click_point(0)
