@@ -66,6 +66,7 @@ def bench_map(sizes: list[int], repeats: int, rng: np.random.Generator) -> list[
     latent_map = LatentMap()
     latent_map.resize(900, 700)
     latent_map.show()
+    QTest.qWaitForWindowExposed(latent_map)
     for n in sizes:
         xy = rng.normal(size=(n, 2))
         labels = rng.integers(0, 12, n)
@@ -116,12 +117,15 @@ def bench_map(sizes: list[int], repeats: int, rng: np.random.Generator) -> list[
 
 def bench_viewport(counts: list[int], repeats: int, rng: np.random.Generator) -> list[dict[str, object]]:
     """Time in-place pose updates plus a synchronous render for each number of skeletons."""
+    from PySide6.QtTest import QTest
+
     from widgets.viewport import SkeletonViewport
 
     rows: list[dict[str, object]] = []
     viewport = SkeletonViewport()
     viewport.resize(800, 600)
     viewport.show()
+    QTest.qWaitForWindowExposed(viewport)
     for n in counts:
         viewport.set_skeletons(PARENTS, n)
         viewport.set_layout("side_by_side", spacing=1.0)

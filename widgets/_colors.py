@@ -8,7 +8,8 @@ from PySide6.QtGui import QBrush, QColor
 
 BACKGROUND = "#1e1f22"
 FOREGROUND = "#d0d0d0"
-GRID = "#5a5d63"
+GRID = "#4a4d53"
+GHOST = "#6b6e75"
 ACCENT = "#ffcc33"
 REQUEST = "#4fc3f7"
 GENERATED = "#ff7043"

@@ -11,7 +11,7 @@ from PySide6.QtGui import QCloseEvent
 from PySide6.QtWidgets import QVBoxLayout, QWidget
 from pyvistaqt import QtInteractor
 
-from widgets._colors import ACCENT, BACKGROUND, GENERATED, GRID, palette_rgb
+from widgets._colors import ACCENT, BACKGROUND, GENERATED, GHOST, GRID, palette_rgb
 
 Layout = Literal["overlay", "side_by_side"]
 
@@ -32,25 +32,33 @@ def _stick_figures(parents: np.ndarray, joints: np.ndarray) -> pv.PolyData:
     return pv.PolyData(points, lines=_bone_cells(parents, len(joints)))
 
 
+def _floor_grid(size: float, step: float) -> pv.PolyData:
+    """Grid lines on the floor (y = 0), ``size`` metres across, one line every ``step`` metres."""
+    ticks = np.arange(-size / 2, size / 2 + step / 2, step)
+    ends = np.full_like(ticks, size / 2)
+    zeros = np.zeros_like(ticks)
+    along_z = np.stack([np.c_[ticks, zeros, -ends], np.c_[ticks, zeros, ends]], axis=1)
+    along_x = np.stack([np.c_[-ends, zeros, ticks], np.c_[ends, zeros, ticks]], axis=1)
+    points = np.concatenate([along_z, along_x]).reshape(-1, 3).astype(np.float32)
+    pairs = np.arange(len(points)).reshape(-1, 2)
+    return pv.PolyData(points, lines=np.c_[np.full(len(pairs), 2), pairs].reshape(-1))
+
+
 class SkeletonViewport(QWidget):
     """A 3-D view of ``n`` skeletons (y up) whose poses are updated in place, plus path, end and ghosts."""
 
-    def __init__(self, parent: QWidget | None = None, *, floor_size: float = 10.0) -> None:
+    def __init__(
+        self, parent: QWidget | None = None, *, floor_size: float = 10.0, multi_samples: int = 0
+    ) -> None:
+        """Create the view; ``multi_samples`` > 0 turns on MSAA (cheap on a GPU, slow in software GL)."""
         super().__init__(parent)
-        self.plotter = QtInteractor(self, auto_update=False)
+        self.plotter = QtInteractor(self, auto_update=False, multi_samples=multi_samples)
         self.plotter.set_background(BACKGROUND)
         layout = QVBoxLayout(self)
         layout.setContentsMargins(0, 0, 0, 0)
         layout.addWidget(self.plotter.interactor)
 
-        floor = pv.Plane(
-            direction=(0.0, 1.0, 0.0),
-            i_size=floor_size,
-            j_size=floor_size,
-            i_resolution=int(floor_size * 2),
-            j_resolution=int(floor_size * 2),
-        )
-        self.plotter.add_mesh(floor, style="wireframe", color=GRID, opacity=0.6, pickable=False)
+        self.plotter.add_mesh(_floor_grid(floor_size, 0.5), color=GRID, pickable=False)
         self._parents = np.zeros(0, dtype=np.int64)
         self._n = 0
         self._spacing = 1.0
@@ -179,8 +187,7 @@ class SkeletonViewport(QWidget):
                 )
             self._ghost_actor = self.plotter.add_mesh(
                 _stick_figures(self._parents, frames),
-                color="white",
-                opacity=0.18,
+                color=GHOST,
                 line_width=2,
                 pickable=False,
                 reset_camera=False,
