@@ -59,7 +59,9 @@ def test_click_near_point_within_tolerance_picks_it(qtbot, latent_map: LatentMap
 def test_click_on_empty_space_emits_data_coords(qtbot, latent_map: LatentMap) -> None:
     target = (0.25, 0.8)
     with qtbot.waitSignal(latent_map.emptyClicked, timeout=1000) as blocker:
-        qtbot.mouseClick(latent_map.plot.viewport(), Qt.MouseButton.LeftButton, pos=_pixel(latent_map, target))
+        qtbot.mouseClick(
+            latent_map.plot.viewport(), Qt.MouseButton.LeftButton, pos=_pixel(latent_map, target)
+        )
     sx, sy = latent_map.view_box.viewPixelSize()
     assert blocker.args[0] == pytest.approx(target[0], abs=1.5 * sx)
     assert blocker.args[1] == pytest.approx(target[1], abs=1.5 * sy)
