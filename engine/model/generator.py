@@ -2,9 +2,88 @@
 
 from __future__ import annotations
 
+import functools
+import logging
+import warnings
+from collections.abc import Callable
+
 import torch
 import torch.nn.functional as F  # noqa: N812
 from torch import Tensor, nn
+
+logger = logging.getLogger(__name__)
+
+
+def _ifog(weight: Tensor) -> Tensor:
+    """LSTM gate rows reordered from torch's (i, f, g, o) to (i, f, o, g): the sigmoid gates side by side."""
+    i, f, g, o = weight.chunk(4, 0)
+    return torch.cat([i, f, o, g], 0)
+
+
+def _free_run_loop(
+    const: Tensor,
+    bias_next: Tensor,
+    h0: Tensor,
+    c0: Tensor,
+    fused: Tensor,
+    slope: Tensor,
+    w_ih: list[Tensor],
+    w_hh: list[Tensor],
+    bias: list[Tensor],
+) -> Tensor:
+    """Top-layer hidden states (B, T, H) of the free-running decoder (TorchScript-compatible).
+
+    ``const`` (B, T, H) is the pose-free part of each frame's input projection, ``bias_next`` (H,) what
+    the previous pose's output bias adds to it, ``h0`` / ``c0`` (L, B, H) the initial state, ``fused``
+    (H, H) the transposed product W_pose·W_out, ``slope`` the PReLU weight; per layer ``w_ih`` (in, 4H)
+    and ``w_hh`` (H, 4H) are transposed and ``bias`` (4H,) summed, all with gates ordered (i, f, o, g).
+    """
+    hidden = h0.shape[2]
+    h = [h0[k] for k in range(len(w_ih))]
+    c = [c0[k] for k in range(len(w_ih))]
+    steps = (const + bias_next).transpose(0, 1).contiguous()
+    tops: list[Tensor] = []
+    x = const[:, 0]
+    for t in range(const.shape[1]):
+        if t > 0:
+            x = torch.addmm(steps[t], h[-1], fused)
+        x = F.prelu(x, slope)
+        for k in range(len(w_ih)):
+            gates = torch.addmm(bias[k], x, w_ih[k]).addmm_(h[k], w_hh[k])
+            sig = gates[:, : 3 * hidden].sigmoid()
+            cell = torch.addcmul(
+                sig[:, hidden : 2 * hidden] * c[k], sig[:, :hidden], gates[:, 3 * hidden :].tanh()
+            )
+            x = sig[:, 2 * hidden :] * cell.tanh()
+            h[k] = x
+            c[k] = cell
+        tops.append(x)
+    return torch.stack(tops, dim=1)
+
+
+def _identity(tensors: list[Tensor]) -> list[tuple[Tensor, int]] | None:
+    """Each tensor with its version counter (None for inference tensors, which have none)."""
+    try:
+        return [(t, t._version) for t in tensors]
+    except RuntimeError:
+        return None
+
+
+def _same(old: list[tuple[Tensor, int]], new: list[tuple[Tensor, int]]) -> bool:
+    """Whether ``new`` names the very same tensors as ``old``, none modified in place since."""
+    return len(old) == len(new) and all(a is b and u == v for (a, u), (b, v) in zip(old, new, strict=True))
+
+
+@functools.cache
+def _compiled_loop() -> Callable[..., Tensor]:
+    """The decoder loop compiled with TorchScript (no per-op Python overhead), or the plain one."""
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # torch.jit.script is deprecated but still the lightest option
+            return torch.jit.script(_free_run_loop)
+    except Exception as error:  # no TorchScript here, or no source to compile: the same loop, eager
+        logger.info("TorchScript unavailable (%s); the free-running decoder runs eagerly", error)
+        return _free_run_loop
 
 
 class MotionGenerator(nn.Module):
@@ -27,13 +106,18 @@ class MotionGenerator(nn.Module):
         self.out = nn.Linear(hidden, self.pose_dim)
         steps = torch.arange(window, dtype=torch.float32) / window
         self.register_buffer("steps", steps.view(1, -1, 1), persistent=False)
+        self._step_cache: tuple[list[tuple[Tensor, int]], tuple[Tensor | list[Tensor], ...]] | None = None
 
     def _context(self, trajectory: Tensor, cond: Tensor) -> tuple[tuple[Tensor, Tensor], Tensor]:
-        """Decoder initial state from ``trajectory`` (B, T, 3) and the pose-free input term (B, T, H)."""
+        """Decoder initial state from ``trajectory`` (B, T, 3) and the pose-free input term (B, T, H).
+
+        W·[pose, cond, t/T] + b = W_pose·pose + (W_cond·cond + b) + w_t·t/T: the code term is computed
+        once per sequence and the time term broadcast over it.
+        """
         _, state = self.traj_lstm(self.traj_embed(trajectory))
-        b, t = cond.shape[0], self.window
-        static = torch.cat([cond.unsqueeze(1).expand(b, t, -1), self.steps.expand(b, t, 1)], dim=2)
-        const = F.linear(static, self.embed.weight[:, self.pose_dim :], self.embed.bias)
+        weight = self.embed.weight
+        per_code = F.linear(cond, weight[:, self.pose_dim : -1], self.embed.bias)
+        const = per_code.unsqueeze(1) + self.steps * weight[:, -1]
         return state, const
 
     def _run(self, prev: Tensor, const: Tensor, state: tuple[Tensor, Tensor]) -> Tensor:
@@ -72,37 +156,41 @@ class MotionGenerator(nn.Module):
         prev = torch.cat([gt.new_zeros(b, 1, self.pose_dim), mixed], dim=1)
         return self._run(prev, const, state).view(b, self.window, -1, 3)
 
+    def _step_weights(self) -> tuple[Tensor | list[Tensor], ...]:
+        """Decoder weights laid out for ``_free_run_loop``; cached while no parameter changes.
+
+        The output layer and the next frame's pose embedding are folded into one H×H product
+        (pose_t = W_out·h_t + b, so W_pose·pose_t = (W_pose·W_out)·h_t + W_pose·b).
+        """
+        lstm = self.lstm
+        sources = [self.embed.weight, self.out.weight, self.out.bias, self.embed_act.weight]
+        sources += [getattr(lstm, name) for name in lstm._flat_weights_names]
+        tracked = torch.is_grad_enabled() and any(p.requires_grad for p in sources)
+        key = _identity(sources)
+        cache = self._step_cache
+        if not tracked and key is not None and cache is not None and _same(cache[0], key):
+            return cache[1]
+        with torch.set_grad_enabled(tracked):
+            w_pose = self.embed.weight[:, : self.pose_dim]
+            layers = range(lstm.num_layers)
+            prepared = (
+                (w_pose @ self.out.weight).t().contiguous(),
+                self.out.bias @ w_pose.t(),
+                self.embed_act.weight,
+                [_ifog(getattr(lstm, f"weight_ih_l{k}")).t().contiguous() for k in layers],
+                [_ifog(getattr(lstm, f"weight_hh_l{k}")).t().contiguous() for k in layers],
+                [_ifog(getattr(lstm, f"bias_ih_l{k}") + getattr(lstm, f"bias_hh_l{k}")) for k in layers],
+            )
+        if not tracked and key is not None:
+            self._step_cache = (key, prepared)
+        return prepared
+
     def _free_run(self, const: Tensor, state: tuple[Tensor, Tensor]) -> Tensor:
         """Autoregressive decode, one frame at a time with LSTM cells sharing the nn.LSTM weights.
 
-        The output layer and the next frame's pose embedding are folded into one H×H product
-        (pose_t = W_out·h_t + b, so W_pose·pose_t = (W_pose·W_out)·h_t + W_pose·b); every frame's
-        pose is then read out of the stacked hidden states with a single matrix product.
+        The per-frame loop runs in TorchScript where available; every frame's pose is read out of the
+        stacked top-layer hidden states with a single matrix product.
         """
-        lstm = self.lstm
-        w_pose = self.embed.weight[:, : self.pose_dim]
-        fused = (w_pose @ self.out.weight).t()
-        const_next = const + self.out.bias @ w_pose.t()
-        slope = self.embed_act.weight
-        layers = [
-            (
-                getattr(lstm, f"weight_ih_l{k}"),
-                getattr(lstm, f"weight_hh_l{k}"),
-                getattr(lstm, f"bias_ih_l{k}"),
-                getattr(lstm, f"bias_hh_l{k}"),
-            )
-            for k in range(lstm.num_layers)
-        ]
-        h = list(state[0].unbind(0))
-        c = list(state[1].unbind(0))
-        tops = []
-        x = const[:, 0]
-        for t in range(self.window):
-            if t > 0:
-                x = torch.addmm(const_next[:, t], h[-1], fused)
-            x = F.prelu(x, slope)
-            for k, (w_ih, w_hh, b_ih, b_hh) in enumerate(layers):
-                h[k], c[k] = torch.lstm_cell(x, (h[k], c[k]), w_ih, w_hh, b_ih, b_hh)
-                x = h[k]
-            tops.append(x)
-        return self.out(torch.stack(tops, dim=1))
+        fused, bias_next, slope, w_ih, w_hh, bias = self._step_weights()
+        tops = _compiled_loop()(const, bias_next, state[0], state[1], fused, slope, w_ih, w_hh, bias)
+        return self.out(tops)

@@ -8,6 +8,8 @@ import pytest
 import torch
 
 from engine.errors import ConfigError, ModelFormatError
+from engine.model import generator as generator_module
+from engine.model import odmo as odmo_module
 from engine.model.config import OdmoConfig
 from engine.model.losses import contrastive_loss, masked_mse, odmo_losses, prior_loss
 from engine.model.odmo import OdmoModel
@@ -37,20 +39,106 @@ def test_shapes_and_batch_of_one_in_train_and_eval_mode() -> None:
     torch.testing.assert_close(traj[:, 0], torch.zeros(1, 3))
 
 
+def _reference_free_run(
+    model: OdmoModel, z: torch.Tensor, action: torch.Tensor, end: torch.Tensor
+) -> torch.Tensor:
+    """Free-running decode written the plain way: one nn.LSTM call per frame on the concatenated input."""
+    gen = model.motion_gen
+    n, t_len = z.shape[0], gen.window
+    cond = model.condition(z, action)
+    traj = model.traj_gen(cond, end)
+    _, state = gen.traj_lstm(gen.traj_embed(traj))
+    prev, poses = torch.zeros(n, gen.pose_dim), []
+    for t in range(t_len):
+        x = torch.cat([prev, cond, torch.full((n, 1), t / t_len)], dim=1)
+        out, state = gen.lstm(gen.embed_act(gen.embed(x))[:, None], state)
+        prev = gen.out(out[:, 0])
+        poses.append(prev)
+    return torch.stack(poses, 1).view(n, t_len, -1, 3)
+
+
 def test_free_running_decode_matches_a_step_by_step_nn_lstm_loop() -> None:
     model = _model().eval()
-    gen = model.motion_gen
     z, action, end = torch.randn(4, 20), torch.tensor([0, 1, 2, 1]), torch.randn(4, 3)
     with torch.no_grad():
+        joints, _ = model.decode(z, action, end)
+        expected = _reference_free_run(model, z, action, end)
+    torch.testing.assert_close(joints, expected, atol=1e-5, rtol=1e-5)
+
+
+@pytest.mark.parametrize("batch", [1, 3])
+def test_fast_decode_matches_the_reference_loop_at_default_sizes(batch: int) -> None:
+    model = OdmoModel(OdmoConfig(n_actions=10, n_joints=21), seed=3).eval()
+    z, action, end = torch.randn(batch, 20), torch.arange(batch) % 10, torch.randn(batch, 3)
+    with torch.inference_mode():
+        joints, _ = model.decode(z, action, end)
+        expected = _reference_free_run(model, z, action, end)
+    torch.testing.assert_close(joints, expected, atol=1e-5, rtol=1e-5)
+
+
+def test_compiled_and_eager_decoder_loops_agree() -> None:
+    model = _model().eval()
+    gen = model.motion_gen
+    z, action, end = torch.randn(3, 20), torch.tensor([0, 1, 2]), torch.randn(3, 3)
+    with torch.no_grad():
+        cond = model.condition(z, action)
+        state, const = gen._context(model.traj_gen(cond, end), cond)
+        fused, bias_next, slope, w_ih, w_hh, bias = gen._step_weights()
+        args = (const, bias_next, state[0], state[1], fused, slope, w_ih, w_hh, bias)
+        eager = generator_module._free_run_loop(*args)
+        compiled = generator_module._compiled_loop()(*args)
+    torch.testing.assert_close(compiled, eager, atol=1e-6, rtol=1e-6)
+
+
+@pytest.mark.parametrize("use_end", [True, False])
+def test_large_batches_decode_in_slices_like_single_rows(use_end: bool, monkeypatch) -> None:
+    monkeypatch.setattr(odmo_module, "DECODE_SLICE", 3)
+    model = _model(use_end_location=use_end).eval()
+    z, action = torch.randn(7, 20), torch.tensor([0, 1, 2, 0, 1, 2, 0])
+    end = torch.randn(7, 3) if use_end else None
+    with torch.inference_mode():
         joints, traj = model.decode(z, action, end)
-        state, _ = gen._context(traj, model.condition(z, action))
-        prev, poses = torch.zeros(4, J * 3), []
-        for t in range(T):
-            x = torch.cat([prev, model.condition(z, action), torch.full((4, 1), t / T)], dim=1)
-            out, state = gen.lstm(gen.embed_act(gen.embed(x))[:, None], state)
-            prev = gen.out(out[:, 0])
-            poses.append(prev)
-    torch.testing.assert_close(joints, torch.stack(poses, 1).view(4, T, J, 3), atol=1e-5, rtol=1e-5)
+        rows = [
+            model.decode(z[i : i + 1], action[i : i + 1], None if end is None else end[i : i + 1])
+            for i in range(7)
+        ]
+    assert joints.shape == (7, T, J, 3) and traj.shape == (7, T, 3)
+    torch.testing.assert_close(joints, torch.cat([r[0] for r in rows]), atol=1e-5, rtol=1e-5)
+    torch.testing.assert_close(traj, torch.cat([r[1] for r in rows]), atol=1e-5, rtol=1e-5)
+
+
+def test_cached_decoder_weights_follow_in_place_updates_and_reloads() -> None:
+    model = _model().eval()
+    z, action, end = torch.randn(2, 20), torch.tensor([0, 2]), torch.randn(2, 3)
+    with torch.inference_mode():
+        before, _ = model.decode(z, action, end)
+    with torch.no_grad():
+        model.motion_gen.lstm.weight_hh_l1.mul_(1.5)
+        model.motion_gen.out.bias.add_(0.1)
+    other = _model().eval()
+    other.load_state_dict(model.state_dict())
+    with torch.inference_mode():
+        after, _ = model.decode(z, action, end)
+        fresh, _ = other.decode(z, action, end)
+        expected = _reference_free_run(model, z, action, end)
+    assert not torch.allclose(before, after)
+    torch.testing.assert_close(after, expected, atol=1e-5, rtol=1e-5)
+    torch.testing.assert_close(fresh, expected, atol=1e-5, rtol=1e-5)
+
+
+def test_free_running_decode_is_differentiable() -> None:
+    model = _model().train()
+    joints, _ = model.decode(torch.randn(2, 20), torch.tensor([0, 1]), torch.randn(2, 3))
+    joints.square().sum().backward()
+    gen = model.motion_gen
+    for p in (
+        gen.lstm.weight_hh_l0,
+        gen.lstm.weight_ih_l1,
+        gen.embed.weight,
+        gen.out.bias,
+        gen.embed_act.weight,
+    ):
+        assert p.grad is not None and p.grad.abs().sum() > 0
 
 
 def test_teacher_forcing_is_causal_and_full_forcing_ignores_the_generator() -> None:
