@@ -8,6 +8,9 @@ from typing import Any
 
 from engine.errors import ConfigError, ModelFormatError
 
+#: Fields added after the first models were saved, with the value that reproduces those models.
+_BEFORE_SWITCHES = {"exact_end": False, "root_relative_poses": False}
+
 
 @dataclass
 class OdmoConfig:
@@ -16,7 +19,10 @@ class OdmoConfig:
     The defaults follow the paper (D = 20, T = 60, LSTM 64 / 128, every loss weight 1, α = 5,
     σ² = 0.05 as a variance, Adam 1e-3, epochs of 2,048 class-balanced windows, teacher forcing
     decaying linearly 1 → 0.3) except the batch (128 windows, the reference uses 512) and the number of
-    epochs, which are sized for a CPU.
+    epochs, which are sized for a CPU. Two changes to the paper's model, each switchable:
+    ``exact_end`` shears the generated root path so that it ends exactly at r_e (the paper only
+    conditions on it), and ``root_relative_poses`` has the pose decoder emit and read back joints
+    relative to the generated trajectory (the paper's emits absolute xyz, which drifts free-running).
     """
 
     n_actions: int
@@ -29,6 +35,8 @@ class OdmoConfig:
     traj_hidden: int = 128
     motion_hidden: int = 128
     use_end_location: bool = True
+    exact_end: bool = True
+    root_relative_poses: bool = True
     alpha: float = 5.0
     prior_sigma2: float = 0.05
     w_recon: float = 1.0
@@ -84,6 +92,7 @@ class OdmoConfig:
         if not isinstance(d, dict):
             raise ModelFormatError(f"model config must be a JSON object, got {type(d).__name__}")
         names = {f.name for f in dataclasses.fields(cls)}
+        d = _BEFORE_SWITCHES | d
         unknown = sorted(set(d) - names)
         if unknown:
             raise ModelFormatError(f"unknown model config keys: {', '.join(unknown)}")

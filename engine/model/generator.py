@@ -90,14 +90,16 @@ class MotionGenerator(nn.Module):
     """Seq2seq pose decoder conditioned on a root trajectory and the action-code conditioning.
 
     Decoder input per frame t: [previous pose (J·3), conditioning (C·D), t/T] → FC + PReLU → 2-layer
-    LSTM (initialised by the trajectory encoder's final state) → FC to the absolute xyz of all J joints.
-    The previous pose of frame 0 is zero.
+    LSTM (initialised by the trajectory encoder's final state) → FC to the xyz of all J joints. The
+    previous pose of frame 0 is zero. With ``relative`` the decoder emits (and reads back) joints minus
+    the given trajectory's root position of that frame, and the trajectory is added to its output.
     """
 
-    def __init__(self, n_joints: int, cond_dim: int, hidden: int, window: int):
+    def __init__(self, n_joints: int, cond_dim: int, hidden: int, window: int, relative: bool = False):
         super().__init__()
         self.pose_dim = n_joints * 3
         self.window = window
+        self.relative = relative
         self.traj_embed = nn.Sequential(nn.Linear(3, hidden), nn.PReLU())
         self.traj_lstm = nn.LSTM(hidden, hidden, num_layers=2, batch_first=True)
         self.embed = nn.Linear(self.pose_dim + cond_dim + 1, hidden)
@@ -144,17 +146,24 @@ class MotionGenerator(nn.Module):
         b = cond.shape[0]
         state, const = self._context(trajectory, cond)
         if truth is None:
-            return self._free_run(const, state).view(b, self.window, -1, 3)
+            return self._absolute(self._free_run(const, state), trajectory)
+        if self.relative:
+            truth = truth - trajectory.detach().unsqueeze(2)
         gt = truth.reshape(b, self.window, self.pose_dim)
         prev = torch.cat([gt.new_zeros(b, 1, self.pose_dim), gt[:, :-1]], dim=1)
         if tf_rate >= 1.0:
-            return self._run(prev, const, state).view(b, self.window, -1, 3)
+            return self._absolute(self._run(prev, const, state), trajectory)
         with torch.no_grad():
             first = self._run(prev, const, state)
         keep = torch.rand(b, self.window - 1, 1, generator=generator, device=gt.device) < tf_rate
         mixed = torch.where(keep, gt[:, :-1], first[:, :-1])
         prev = torch.cat([gt.new_zeros(b, 1, self.pose_dim), mixed], dim=1)
-        return self._run(prev, const, state).view(b, self.window, -1, 3)
+        return self._absolute(self._run(prev, const, state), trajectory)
+
+    def _absolute(self, poses: Tensor, trajectory: Tensor) -> Tensor:
+        """Joints (B, T, J, 3) from the decoder's output (B, T, J·3), the trajectory added if relative."""
+        joints = poses.view(poses.shape[0], self.window, -1, 3)
+        return joints + trajectory.unsqueeze(2) if self.relative else joints
 
     def _step_weights(self) -> tuple[Tensor | list[Tensor], ...]:
         """Decoder weights laid out for ``_free_run_loop``; cached while no parameter changes.

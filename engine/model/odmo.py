@@ -31,9 +31,11 @@ class OdmoModel(nn.Module):
                 config.n_joints * 3, config.enc_hidden, config.enc_fc, config.latent_dim
             )
             self.traj_gen = TrajectoryGenerator(
-                cond_dim, config.traj_hidden, config.window, config.use_end_location
+                cond_dim, config.traj_hidden, config.window, config.use_end_location, config.exact_end
             )
-            self.motion_gen = MotionGenerator(config.n_joints, cond_dim, config.motion_hidden, config.window)
+            self.motion_gen = MotionGenerator(
+                config.n_joints, cond_dim, config.motion_hidden, config.window, config.root_relative_poses
+            )
         self.to_empty(device="cpu")
         self._init_buffers()
         self.reset_parameters(torch.Generator().manual_seed(seed))
@@ -42,6 +44,7 @@ class OdmoModel(nn.Module):
         """Fill the non-persistent time-step buffers (left empty by ``to_empty``)."""
         t = self.config.window
         self.traj_gen.steps.copy_((torch.arange(1, t, dtype=torch.float32) / t).view(1, -1, 1))
+        self.traj_gen.shear.copy_((torch.arange(t, dtype=torch.float32) / (t - 1)).view(1, -1, 1))
         self.motion_gen.steps.copy_((torch.arange(t, dtype=torch.float32) / t).view(1, -1, 1))
 
     @torch.no_grad()

@@ -20,6 +20,7 @@ from engine.generate import (
     resolve_ends,
     sample,
 )
+from engine.generate._decode import display_lift
 from engine.modelio import LoadedModel, load_model
 from engine.motion.motion import Motion
 from engine.motion.skeleton import Skeleton
@@ -79,6 +80,19 @@ def test_end_location_is_predicted_smoothly_from_the_bank(loaded):
     decoded = decode(loaded, a, 2)
     given = decode(loaded, a, 2, end=loaded.bank.ends[idx[0]])
     np.testing.assert_allclose(decoded.joints, given.joints, atol=1e-5)
+
+
+def test_a_given_end_location_is_reached_by_the_generated_root(loaded):
+    action = 0
+    code = loaded.bank.codes[loaded.bank.indices_of(action)[0]]
+    predicted = resolve_ends(loaded, code[None], action, None)
+    target = predicted[0] + np.float32([0.4, 0.0, -0.3])
+    lift = display_lift(loaded)
+    root = loaded.skeleton.root
+    steered, _ = decode_array(loaded, code[None], np.array([action]), target[None])
+    default, _ = decode_array(loaded, code[None], np.array([action]), predicted)
+    miss = np.linalg.norm(steered[0, -1, root] - lift - target)
+    assert miss < 0.1 < np.linalg.norm(default[0, -1, root] - lift - target)
 
 
 def test_floor_end_takes_height_from_the_bank(loaded):

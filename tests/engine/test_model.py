@@ -42,7 +42,10 @@ def test_shapes_and_batch_of_one_in_train_and_eval_mode() -> None:
 def _reference_free_run(
     model: OdmoModel, z: torch.Tensor, action: torch.Tensor, end: torch.Tensor
 ) -> torch.Tensor:
-    """Free-running decode written the plain way: one nn.LSTM call per frame on the concatenated input."""
+    """Free-running decode written the plain way: one nn.LSTM call per frame on the concatenated input.
+
+    A root-relative decoder reads back its own (relative) output; the trajectory is added at the end.
+    """
     gen = model.motion_gen
     n, t_len = z.shape[0], gen.window
     cond = model.condition(z, action)
@@ -54,11 +57,13 @@ def _reference_free_run(
         out, state = gen.lstm(gen.embed_act(gen.embed(x))[:, None], state)
         prev = gen.out(out[:, 0])
         poses.append(prev)
-    return torch.stack(poses, 1).view(n, t_len, -1, 3)
+    joints = torch.stack(poses, 1).view(n, t_len, -1, 3)
+    return joints + traj.unsqueeze(2) if gen.relative else joints
 
 
-def test_free_running_decode_matches_a_step_by_step_nn_lstm_loop() -> None:
-    model = _model().eval()
+@pytest.mark.parametrize("relative", [True, False])
+def test_free_running_decode_matches_a_step_by_step_nn_lstm_loop(relative: bool) -> None:
+    model = _model(root_relative_poses=relative).eval()
     z, action, end = torch.randn(4, 20), torch.tensor([0, 1, 2, 1]), torch.randn(4, 3)
     with torch.no_grad():
         joints, _ = model.decode(z, action, end)
@@ -183,6 +188,29 @@ def test_end_location_switch() -> None:
     off = _model(use_end_location=False)
     assert off.trajectory(torch.randn(2, 20), torch.tensor([0, 1])).shape == (2, T, 3)
     assert off.traj_gen.embed[0].in_features == 3 * 20
+
+
+@pytest.mark.parametrize("exact", [True, False])
+def test_exact_end_shears_the_path_onto_the_end_location(exact: bool) -> None:
+    model = _model(exact_end=exact)
+    z, action, end = torch.randn(4, 20), torch.tensor([0, 1, 2, 0]), 3.0 * torch.randn(4, 3)
+    with torch.no_grad():
+        path = model.trajectory(z, action, end)
+        free = model.traj_gen._path(torch.cat([model.condition(z, action), end], dim=1))
+    torch.testing.assert_close(path[:, 0], torch.zeros(4, 3))
+    miss = (path[:, -1] - end).abs().max()
+    assert (miss < 1e-5) if exact else torch.equal(path, free)
+    if exact:
+        shear = (path - free) / (end - free[:, -1]).unsqueeze(1)
+        torch.testing.assert_close(shear, torch.linspace(0, 1, T).view(1, T, 1).expand(4, T, 3))
+
+
+def test_configs_saved_before_the_switches_load_as_the_paper_model() -> None:
+    old = OdmoConfig(n_actions=2, n_joints=5).to_dict()
+    del old["exact_end"], old["root_relative_poses"]
+    cfg = OdmoConfig.from_dict(old)
+    assert not cfg.exact_end and not cfg.root_relative_poses
+    assert not OdmoModel(cfg).motion_gen.relative
 
 
 def test_masked_loss_ignores_padded_frames() -> None:

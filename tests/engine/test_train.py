@@ -25,10 +25,16 @@ def test_short_training_lowers_every_loss_term(tiny_model_dir: Path) -> None:
     with open(tiny_model_dir / "train_log.csv", newline="") as handle:
         rows = list(csv.DictReader(handle))
     assert len(rows) == tiny_config().epochs
+    assert tiny_config().exact_end
     for term in LOSS_TERMS:
         first, last = float(rows[0][f"train_{term}"]), float(rows[-1][f"train_{term}"])
-        assert last < first, term
         assert np.isfinite(float(rows[-1][f"val_{term}"]))
+        if term == "traj":
+            # The exact-end shear makes the first path a straight line to the true end, which the
+            # procedural clips nearly follow already: the term starts at its floor.
+            assert last < 0.01, term
+            continue
+        assert last < first, term
     assert float(rows[0]["tf_rate"]) == 1.0 > float(rows[-1]["tf_rate"])
 
 
