@@ -46,7 +46,7 @@ def parse_args() -> argparse.Namespace:
     p.add_argument("--data", required=True, type=Path)
     p.add_argument("--out", type=Path, default=DEFAULT_OUT)
     p.add_argument("--work", type=Path, default=Path("runs/bandai2-odmo"), help="checkpoints and logs")
-    p.add_argument("--epochs", type=int, default=40)
+    p.add_argument("--epochs", type=int, default=300)
     p.add_argument(
         "--tf-decay-epochs", type=int, help="epochs until teacher forcing reaches its floor (default 2/3)"
     )

@@ -80,6 +80,15 @@ class _Tokens:
         self.pos += 1
         return item
 
+    def name(self, what: str) -> tuple[str, int]:
+        """A joint name: the rest of its line up to a '{' (3ds Max writes names such as "Bip01 L Thigh")."""
+        tok, line = self.next(what)
+        parts = [tok]
+        while self.pos < len(self.items) and self.items[self.pos][1] == line and self.items[self.pos][0] != "{":
+            parts.append(self.items[self.pos][0])
+            self.pos += 1
+        return " ".join(parts), line
+
     def expect(self, keyword: str) -> int:
         """Consume ``keyword`` (case-insensitive) and return its line."""
         tok, line = self.next(repr(keyword))
@@ -165,7 +174,7 @@ def _parse_hierarchy(lines: Sequence[str], path: str, motion_line: int) -> list[
         toks.expect("{")
         stack.append(len(nodes) - 1)
 
-    name, line = toks.next("the root joint's name")
+    name, line = toks.name("the root joint's name")
     open_node(name, line)
     while stack:
         node = nodes[stack[-1]]
@@ -178,7 +187,7 @@ def _parse_hierarchy(lines: Sequence[str], path: str, motion_line: int) -> list[
         elif key == "CHANNELS" and node.name is not None:
             _read_channels(toks, node, line)
         elif key == "JOINT" and node.name is not None:
-            name, line = toks.next("a joint name")
+            name, line = toks.name("a joint name")
             open_node(name, line)
         elif key == "END" and node.name is not None:
             toks.expect("Site")

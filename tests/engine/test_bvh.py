@@ -122,6 +122,20 @@ def test_zero_length_bones_are_kept() -> None:
     assert motion.skeleton.bone_lengths()[1] == 0.0
 
 
+def test_names_with_spaces_and_upper_case_end_site(tmp_path: Path) -> None:
+    text = (
+        "HIERARCHY\nROOT Bip01 Pelvis\n{\n OFFSET 0 90 0\n CHANNELS 6 Xposition Yposition Zposition"
+        " Zrotation Xrotation Yrotation\n JOINT Bip01 L Thigh {\n  OFFSET 10 0 0\n"
+        "  CHANNELS 3 Zrotation Xrotation Yrotation\n  END Site\n  {\n   OFFSET 0 -40 0\n  }\n }\n}\n"
+        "MOTION\nFrames: 1\nFrame Time: 0.0333333\n0 90 0 0 0 0 90 0 0\n"
+    )
+    motion = parse_bvh_text(text, units="cm")
+    assert motion.skeleton.names == ("Bip01 Pelvis", "Bip01 L Thigh")
+    np.testing.assert_allclose(motion.joints[0], [[0, 0.9, 0], [0.1, 0.9, 0]], atol=1e-6)
+    write_bvh(tmp_path / "max.bvh", motion)
+    assert read_bvh(tmp_path / "max.bvh").skeleton.names == ("Bip01_Pelvis", "Bip01_L_Thigh")
+
+
 def _chain_motion(rng: np.random.Generator, order: str = "ZXY") -> Motion:
     skel = Skeleton(
         ("root", "spine", "head", "arm", "hand"),
