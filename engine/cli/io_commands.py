@@ -126,9 +126,12 @@ def _convert(args: argparse.Namespace) -> int:
             motion = motion.resample(args.fps)
         out = args.output / f"{i:04d}_{motion.action}.{args.to}" if from_pickle else args.output
         report = write_motion(motion, out)
-        print(f"wrote {out}: {motion.n_frames} frames at {motion.fps:g} fps, {motion.n_joints} joints")
+        joints = report.get("joints", motion.n_joints)
+        print(f"wrote {out}: {motion.n_frames} frames at {motion.fps:g} fps, {joints} joints")
         if report.get("rotations_from") == "ik":
             print(
                 f"  joints converted to rotations by IK: mean FK error {report['fk_error_m'] * 1000:.2f} mm"
             )
+        if report.get("dropped_root"):
+            print(f"  root {report['dropped_root']!r} changes length to its child: written without it")
     return 0

@@ -12,19 +12,24 @@ from scipy.special import logsumexp
 from engine.errors import ConfigError
 from engine.generate._decode import as_codes
 from engine.modelio import LoadedModel
+from engine.motion.datasets import without_joints
 from engine.motion.motion import Motion
 from engine.train.windows import crop_windows, prepare_clips
 
 
-def _check_skeleton(loaded: LoadedModel, motion: Motion) -> None:
-    """ConfigError naming both joint lists when the motion's skeleton is not the model's."""
+def conform(loaded: LoadedModel, motion: Motion) -> Motion:
+    """``motion`` on the model's skeleton: extra joints (e.g. Bandai's ground-projected ``joint_Root``)
+    are dropped by name when every model joint is present; ConfigError naming both joint lists otherwise."""
     ours, theirs = loaded.skeleton, motion.skeleton
-    if not ours.same_topology(theirs):
+    if not ours.same_topology(theirs) and set(ours.names) <= set(theirs.names):
+        motion = without_joints(motion, [n for n in theirs.names if n not in ours.names])
+    if not ours.same_topology(motion.skeleton):
         source = motion.meta.get("source", motion.meta.get("path", "the motion"))
         raise ConfigError(
             f"{source}: skeleton does not match the model's ({theirs.n_joints} joints "
             f"[{', '.join(theirs.names)}] vs {ours.n_joints} joints [{', '.join(ours.names)}])"
         )
+    return motion
 
 
 def guess_action(loaded: LoadedModel, code: np.ndarray) -> int | None:
@@ -47,10 +52,8 @@ def encode_clips(loaded: LoadedModel, motions: Sequence[Motion]) -> tuple[np.nda
     """
     if not motions:
         raise ConfigError("no motions to encode")
-    for motion in motions:
-        _check_skeleton(loaded, motion)
     # The label only routes clips through the training preparation; it does not affect the codes.
-    unlabelled = [dataclasses.replace(m, action=loaded.action_names[0]) for m in motions]
+    unlabelled = [dataclasses.replace(conform(loaded, m), action=loaded.action_names[0]) for m in motions]
     prepared = prepare_clips(unlabelled, loaded.action_names, loaded.fps, loaded.window)
     window = crop_windows(prepared, np.arange(len(motions)), None)
     model = loaded.model

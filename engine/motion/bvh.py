@@ -47,6 +47,7 @@ _POSITION = {"XPOSITION": 0, "YPOSITION": 1, "ZPOSITION": 2}
 _ROTATION = {"XROTATION": "X", "YROTATION": "Y", "ZROTATION": "Z"}
 _MIN_FRAME_TIME, _MAX_FRAME_TIME = 1e-4, 10.0
 _CONSTANT_TRANSLATION_M = 1e-6
+_STRETCH_TOLERANCE_M = 0.01  # a root bone changing length by more than this is not a bone
 _FRAMES_RE = re.compile(r"^\s*frames\s*:\s*(\S+)\s*$", re.IGNORECASE)
 _FRAME_TIME_RE = re.compile(r"^\s*frame\s+time\s*:\s*(\S+)\s*$", re.IGNORECASE)
 
@@ -84,7 +85,9 @@ class _Tokens:
         """A joint name: the rest of its line up to a '{' (3ds Max writes names such as "Bip01 L Thigh")."""
         tok, line = self.next(what)
         parts = [tok]
-        while self.pos < len(self.items) and self.items[self.pos][1] == line and self.items[self.pos][0] != "{":
+        while (
+            self.pos < len(self.items) and self.items[self.pos][1] == line and self.items[self.pos][0] != "{"
+        ):
             parts.append(self.items[self.pos][0])
             self.pos += 1
         return " ".join(parts), line
@@ -402,9 +405,11 @@ def format_bvh(
         raise ConfigError(f"rotation order must be a permutation of XYZ, got {rotation_order!r}")
     if units not in UNITS_TO_M:
         raise ConfigError(f"units must be one of {', '.join(UNITS_TO_M)}, got {units!r}")
+    dropped = None
     if motion.local_rotations is None:
         from engine.motion.ik import joints_to_rotations
 
+        motion, dropped = _without_stretching_root(motion)
         skeleton, rotations, root_translation, _ = joints_to_rotations(motion)
         source = "ik"
     else:
@@ -437,8 +442,28 @@ def format_bvh(
         "frames": motion.n_frames,
         "joints": skeleton.n_joints,
         "renamed": {old: new for old, new in zip(skeleton.names, names, strict=True) if old != new},
+        "dropped_root": dropped,
     }
     return text, report
+
+
+def _without_stretching_root(motion: Motion) -> tuple[Motion, str | None]:
+    """``motion`` without its root joint, and the root's name, when the root has one child and that bone
+    changes length (a ground projection such as Bandai's ``joint_Root``): fixed-length bones cannot
+    carry it, its child becomes the BVH ROOT instead. Otherwise ``motion`` unchanged and None."""
+    skel = motion.skeleton
+    root = skel.root
+    children = skel.children(root)
+    if len(children) != 1:
+        return motion, None
+    length = np.linalg.norm(motion.joints[:, children[0]] - motion.joints[:, root], axis=-1)
+    if np.ptp(length) <= _STRETCH_TOLERANCE_M:
+        return motion, None
+    keep = [j for j in range(skel.n_joints) if j != root]
+    reduced = Motion(
+        motion.joints[:, keep], motion.fps, skel.subset(keep), action=motion.action, meta=motion.meta
+    )
+    return reduced, skel.names[root]
 
 
 def _depth_first(skeleton: Skeleton) -> list[int]:

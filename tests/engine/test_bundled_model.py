@@ -1,4 +1,4 @@
-"""The bundled default model: it loads strictly, samples from the CLI, and its motions read as their action."""
+"""The bundled default model: strict loading, CLI sampling, and motions recognised as their action."""
 
 from __future__ import annotations
 
@@ -47,7 +47,9 @@ def test_bank_covers_every_action_with_modes_and_maps(bundled) -> None:
 
 def test_cli_samples_walks_from_the_bundled_model(tmp_path, capsys) -> None:
     out = tmp_path / "walk.bvh"
-    assert cli.main(["sample", "--model", str(BUNDLED), "--action", "walk", "--n", "3", "--out", str(out)]) == 0
+    assert (
+        cli.main(["sample", "--model", str(BUNDLED), "--action", "walk", "--n", "3", "--out", str(out)]) == 0
+    )
     files = sorted(tmp_path.glob("walk_*.bvh"))
     assert len(files) == 3
     motion = Motion.from_bvh(files[0])

@@ -136,6 +136,25 @@ def test_names_with_spaces_and_upper_case_end_site(tmp_path: Path) -> None:
     assert read_bvh(tmp_path / "max.bvh").skeleton.names == ("Bip01_Pelvis", "Bip01_L_Thigh")
 
 
+def test_a_ground_projected_root_is_dropped_from_joints_only_export(tmp_path: Path) -> None:
+    motion = _chain_motion(np.random.default_rng(4))
+    skel = motion.skeleton
+    ground = motion.joints[:, :1] * np.array([1.0, 0.0, 1.0])
+    parents = np.concatenate([[-1], np.where(skel.parents < 0, 0, skel.parents + 1)])
+    offsets = np.concatenate([np.zeros((1, 3)), skel.offsets])
+    projected = Motion(
+        np.concatenate([ground, motion.joints], axis=1),
+        30.0,
+        Skeleton(("Ground", *skel.names), parents, offsets),
+    )
+    report = write_bvh(tmp_path / "ground.bvh", projected)
+    assert report["dropped_root"] == "Ground" and report["joints"] == skel.n_joints
+    back = read_bvh(tmp_path / "ground.bvh")
+    assert back.skeleton.names == skel.names
+    np.testing.assert_allclose(back.joints, motion.joints, atol=1e-4)
+    assert write_bvh(tmp_path / "plain.bvh", Motion(motion.joints, 30.0, skel))["dropped_root"] is None
+
+
 def _chain_motion(rng: np.random.Generator, order: str = "ZXY") -> Motion:
     skel = Skeleton(
         ("root", "spine", "head", "arm", "hand"),

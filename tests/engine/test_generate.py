@@ -204,3 +204,18 @@ def test_encode_rejects_another_skeleton(loaded, procedural_clips):
     other = Skeleton(names, clip.skeleton.parents, clip.skeleton.offsets)
     with pytest.raises(ConfigError, match=r"XHips.*Hips"):
         encode(loaded, Motion(clip.joints, clip.fps, other))
+
+
+def test_encode_drops_extra_joints_the_model_does_not_have(loaded, procedural_clips):
+    clip = procedural_clips[0]
+    skel = clip.skeleton
+    # A Bandai-style ground-projected root above the model's root joint.
+    ground = np.concatenate([clip.joints[:, :1] * np.float32([1, 0, 1]), clip.joints], axis=1)
+    extra = Skeleton(
+        ("Ground", *skel.names),
+        np.concatenate([[-1], np.where(skel.parents < 0, 0, skel.parents + 1)]),
+        np.concatenate([np.zeros((1, 3)), skel.offsets]),
+    )
+    code, _ = encode(loaded, clip)
+    with_ground, _ = encode(loaded, Motion(ground, clip.fps, extra))
+    np.testing.assert_allclose(with_ground, code, atol=1e-5)
