@@ -91,8 +91,9 @@ class MotionGenerator(nn.Module):
 
     Decoder input per frame t: [previous pose (J·3), conditioning (C·D), t/T] → FC + PReLU → 2-layer
     LSTM (initialised by the trajectory encoder's final state) → FC to the xyz of all J joints. The
-    previous pose of frame 0 is zero. With ``relative`` the decoder emits (and reads back) joints minus
-    the given trajectory's root position of that frame, and the trajectory is added to its output.
+    previous pose of frame 0 is zero. With ``relative`` the decoder's pose is read as the local movement
+    profile (every joint minus the root, joint 0): that is what it reads back, and the trajectory is
+    the root, so the generated root follows the trajectory exactly.
     """
 
     def __init__(self, n_joints: int, cond_dim: int, hidden: int, window: int, relative: bool = False):
@@ -147,29 +148,36 @@ class MotionGenerator(nn.Module):
         state, const = self._context(trajectory, cond)
         if truth is None:
             return self._absolute(self._free_run(const, state), trajectory)
-        if self.relative:
-            truth = truth - trajectory.detach().unsqueeze(2)
-        gt = truth.reshape(b, self.window, self.pose_dim)
+        gt = self._readback(truth.reshape(b, self.window, self.pose_dim))
         prev = torch.cat([gt.new_zeros(b, 1, self.pose_dim), gt[:, :-1]], dim=1)
         if tf_rate >= 1.0:
             return self._absolute(self._run(prev, const, state), trajectory)
         with torch.no_grad():
-            first = self._run(prev, const, state)
+            first = self._readback(self._run(prev, const, state))
         keep = torch.rand(b, self.window - 1, 1, generator=generator, device=gt.device) < tf_rate
         mixed = torch.where(keep, gt[:, :-1], first[:, :-1])
         prev = torch.cat([gt.new_zeros(b, 1, self.pose_dim), mixed], dim=1)
         return self._absolute(self._run(prev, const, state), trajectory)
 
+    def _readback(self, poses: Tensor) -> Tensor:
+        """Poses (..., J·3) as the decoder reads them back: root-centred if relative (a linear map)."""
+        if not self.relative:
+            return poses
+        joints = poses.unflatten(-1, (-1, 3))
+        return (joints - joints[..., :1, :]).flatten(-2)
+
     def _absolute(self, poses: Tensor, trajectory: Tensor) -> Tensor:
-        """Joints (B, T, J, 3) from the decoder's output (B, T, J·3), the trajectory added if relative."""
-        joints = poses.view(poses.shape[0], self.window, -1, 3)
+        """Joints (B, T, J, 3) from the decoder's output (B, T, J·3): root-centred on the trajectory if
+        relative."""
+        joints = self._readback(poses).view(poses.shape[0], self.window, -1, 3)
         return joints + trajectory.unsqueeze(2) if self.relative else joints
 
     def _step_weights(self) -> tuple[Tensor | list[Tensor], ...]:
         """Decoder weights laid out for ``_free_run_loop``; cached while no parameter changes.
 
-        The output layer and the next frame's pose embedding are folded into one H×H product
-        (pose_t = W_out·h_t + b, so W_pose·pose_t = (W_pose·W_out)·h_t + W_pose·b).
+        The output layer, the read-back map R (identity, or root-centring if relative) and the next
+        frame's pose embedding are folded into one H×H product (pose_t = R·(W_out·h_t + b), so
+        W_pose·pose_t = (W_pose·R·W_out)·h_t + W_pose·R·b).
         """
         lstm = self.lstm
         sources = [self.embed.weight, self.out.weight, self.out.bias, self.embed_act.weight]
@@ -181,10 +189,11 @@ class MotionGenerator(nn.Module):
             return cache[1]
         with torch.set_grad_enabled(tracked):
             w_pose = self.embed.weight[:, : self.pose_dim]
+            w_out = self._readback(self.out.weight.t()).t()
             layers = range(lstm.num_layers)
             prepared = (
-                (w_pose @ self.out.weight).t().contiguous(),
-                self.out.bias @ w_pose.t(),
+                (w_pose @ w_out).t().contiguous(),
+                self._readback(self.out.bias) @ w_pose.t(),
                 self.embed_act.weight,
                 [_ifog(getattr(lstm, f"weight_ih_l{k}")).t().contiguous() for k in layers],
                 [_ifog(getattr(lstm, f"weight_hh_l{k}")).t().contiguous() for k in layers],

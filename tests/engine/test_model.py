@@ -44,7 +44,7 @@ def _reference_free_run(
 ) -> torch.Tensor:
     """Free-running decode written the plain way: one nn.LSTM call per frame on the concatenated input.
 
-    A root-relative decoder reads back its own (relative) output; the trajectory is added at the end.
+    A root-relative decoder reads back its output minus its root joint; the trajectory is the root.
     """
     gen = model.motion_gen
     n, t_len = z.shape[0], gen.window
@@ -55,7 +55,10 @@ def _reference_free_run(
     for t in range(t_len):
         x = torch.cat([prev, cond, torch.full((n, 1), t / t_len)], dim=1)
         out, state = gen.lstm(gen.embed_act(gen.embed(x))[:, None], state)
-        prev = gen.out(out[:, 0])
+        pose = gen.out(out[:, 0]).view(n, -1, 3)
+        if gen.relative:
+            pose = pose - pose[:, :1]
+        prev = pose.flatten(1)
         poses.append(prev)
     joints = torch.stack(poses, 1).view(n, t_len, -1, 3)
     return joints + traj.unsqueeze(2) if gen.relative else joints
@@ -151,7 +154,7 @@ def test_teacher_forcing_is_causal_and_full_forcing_ignores_the_generator() -> N
     z, action, end = torch.randn(2, 20), torch.tensor([0, 1]), torch.randn(2, 3)
     truth = torch.randn(2, T, J, 3)
     changed = truth.clone()
-    changed[:, 6] += 1.0
+    changed[:, 6, 1] += 1.0  # one joint: a whole-body shift leaves a root-centred pose unchanged
     with torch.no_grad():
         a, _ = model.decode(z, action, end, prev_truth=truth, tf_rate=1.0)
         b, _ = model.decode(z, action, end, prev_truth=changed, tf_rate=1.0)
@@ -203,6 +206,17 @@ def test_exact_end_shears_the_path_onto_the_end_location(exact: bool) -> None:
     if exact:
         shear = (path - free) / (end - free[:, -1]).unsqueeze(1)
         torch.testing.assert_close(shear, torch.linspace(0, 1, T).view(1, T, 1).expand(4, T, 3))
+
+
+def test_root_relative_poses_put_the_root_on_the_trajectory() -> None:
+    model = _model().eval()
+    z, action, end = torch.randn(3, 20), torch.tensor([0, 1, 2]), torch.randn(3, 3)
+    with torch.no_grad():
+        free, traj = model.decode(z, action, end)
+        forced, traj_f = model.decode(z, action, end, prev_truth=torch.randn(3, T, J, 3), tf_rate=0.5)
+    torch.testing.assert_close(free[:, :, 0], traj, atol=1e-6, rtol=0)
+    torch.testing.assert_close(forced[:, :, 0], traj_f, atol=1e-6, rtol=0)
+    assert (free[:, :, 1:] - traj.unsqueeze(2)).abs().max() > 1e-3
 
 
 def test_configs_saved_before_the_switches_load_as_the_paper_model() -> None:
