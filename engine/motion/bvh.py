@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import logging
 import re
+import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from itertools import chain
@@ -286,10 +287,18 @@ def _parse_frames(lines: Sequence[str], start: int, frames: int, n_channels: int
         k = int(bad[0])
         raise MotionFormatError(f"expected {n_channels} values, found {counts[k]}", path, start + k + 1)
     try:
-        values = np.array(list(chain.from_iterable(split)), dtype=np.float64).reshape(frames, n_channels)
-    except ValueError:
-        k, tok = _first_bad_number(split)
-        raise MotionFormatError(f"not a number: {tok!r}", path, start + k + 1) from None
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", DeprecationWarning)  # older numpy warns at a bad token
+            values = np.fromstring("\n".join(rows), dtype=np.float64, sep=" ")
+    except ValueError:  # newer numpy raises there
+        values = np.zeros(0)
+    if values.size != frames * n_channels:
+        bad_token = _first_bad_number(split)
+        if bad_token is not None:
+            raise MotionFormatError(f"not a number: {bad_token[1]!r}", path, start + bad_token[0] + 1)
+        # Forms Python reads but C's strtod does not (e.g. "1_000"): parse them the slow way.
+        values = np.array([float(tok) for tok in chain.from_iterable(split)], dtype=np.float64)
+    values = values.reshape(frames, n_channels)
     finite = np.isfinite(values)
     if not finite.all():
         k = int(np.flatnonzero(~finite.all(axis=1))[0])
@@ -297,15 +306,15 @@ def _parse_frames(lines: Sequence[str], start: int, frames: int, n_channels: int
     return values
 
 
-def _first_bad_number(split: Sequence[Sequence[str]]) -> tuple[int, str]:
-    """(row index, token) of the first token that is not a number."""
+def _first_bad_number(split: Sequence[Sequence[str]]) -> tuple[int, str] | None:
+    """(row index, token) of the first token that is not a number, or None."""
     for k, row in enumerate(split):
         for tok in row:
             try:
                 float(tok)
             except ValueError:
                 return k, tok
-    return 0, ""
+    return None
 
 
 def _build_motion(
