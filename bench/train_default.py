@@ -195,7 +195,12 @@ def model_switches(config: OdmoConfig) -> str:
         )
     if not parts:
         return "the paper's model"
-    return "paper sizes, with " + " and ".join(parts) + "; so a requested end location is reached exactly"
+    exact = config.use_end_location and config.exact_end and config.root_relative_poses
+    return (
+        "paper sizes, with "
+        + " and ".join(parts)
+        + ("; a requested end location is reached exactly" if exact else "")
+    )
 
 
 def _size_mb(folder: Path) -> float:
