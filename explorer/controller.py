@@ -881,6 +881,8 @@ class Controller(QObject):
         w.timeline.set_length(length, first.fps)
         if restart:
             w.timeline.set_frame(0)
+            if not w.viewport.follow:
+                w.viewport.frame_motion(_padded_frames(played, length))
         self.state.frame = frame
         self._set_frame(frame)
         if restart or not w.timeline.is_playing():
@@ -996,6 +998,13 @@ def _decode_one(
 
     rows = None if end is None else np.array(end, dtype=np.float32).reshape(1, -1)
     return generate.decode(loaded, np.array(code, dtype=np.float32), action, rows, mode=mode)
+
+
+def _padded_frames(motions: Sequence[Motion], length: int) -> np.ndarray:
+    """(n, length, J, 3) joints of ``motions``, each padded with its last frame (for framing the view)."""
+    return np.stack(
+        [np.concatenate([m.joints, np.repeat(m.joints[-1:], length - m.n_frames, 0)]) for m in motions]
+    )
 
 
 def _root_xz(motion: Motion) -> np.ndarray:

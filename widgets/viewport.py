@@ -198,18 +198,35 @@ class SkeletonViewport(QWidget):
     def reset_camera(self) -> None:
         """Look at the skeletons from the front-right, slightly above, y up."""
         if self._mesh is not None and self._n:
-            lo, hi = (
-                self.skeleton_points().reshape(-1, 3).min(0),
-                self.skeleton_points().reshape(-1, 3).max(0),
-            )
+            self._look_at(self.skeleton_points().reshape(-1, 3))
         else:
-            lo, hi = np.array([-0.5, 0.0, -0.5]), np.array([0.5, 1.8, 0.5])
+            self._look_at(np.array([[-0.5, 0.0, -0.5], [0.5, 1.8, 0.5]]))
+
+    def frame_motion(self, frames: np.ndarray) -> None:
+        """Aim the camera (as ``reset_camera``) so that every frame of the skeletons stays in view.
+
+        ``frames`` is (n, T, J, 3): each skeleton's joint positions over a whole motion, before the
+        layout offsets, which are added here.
+        """
+        frames = np.asarray(frames, dtype=np.float64)
+        if frames.ndim != 4 or frames.shape[0] != self._n or frames.shape[3] != 3:
+            raise ValueError(f"frames must be ({self._n}, T, J, 3), got {frames.shape}")
+        self._look_at((frames + self._offsets[:, None, None, :]).reshape(-1, 3))
+
+    def _look_at(self, points: np.ndarray) -> None:
+        """Front-right, slightly-above view of the bounding box of ``points`` (N, 3)."""
+        lo, hi = points.min(0), points.max(0)
         center = (lo + hi) / 2
         extent = max(float(np.max(hi - lo)), 1.8)
         position = center + np.array([0.5, 0.35, 1.0]) * 1.6 * extent
         self.plotter.camera_position = [tuple(position), tuple(center), (0.0, 1.0, 0.0)]
         self._follow_anchor = None
         self._schedule_render()
+
+    @property
+    def follow(self) -> bool:
+        """Whether the camera follows the skeletons' root (see ``set_follow``)."""
+        return self._follow
 
     def set_follow(self, follow: bool) -> None:
         """Make the camera follow the (mean) root of the skeletons on the floor plane."""

@@ -82,6 +82,31 @@ def test_follow_moves_camera_with_root(viewport: SkeletonViewport) -> None:
     )
 
 
+def _in_view(viewport: SkeletonViewport, points: np.ndarray) -> np.ndarray:
+    """Whether each world point (N, 3) projects inside the rendered viewport (VTK's own transform)."""
+    renderer = viewport.plotter.renderer
+    inside = []
+    for p in points:
+        renderer.SetWorldPoint(*p, 1.0)
+        renderer.WorldToDisplay()
+        x, y, _ = renderer.GetDisplayPoint()
+        width, height = renderer.GetSize()
+        inside.append(0 <= x <= width and 0 <= y <= height)
+    return np.array(inside)
+
+
+def test_frame_motion_keeps_a_whole_walk_in_view(viewport: SkeletonViewport) -> None:
+    walk = POSE[None] + np.linspace(0.0, 6.0, 30)[:, None, None] * np.array([0.3, 0.0, 1.0], np.float32)
+    ends = np.stack([walk[0], walk[-1]]).reshape(-1, 3)
+    viewport.reset_camera()
+    assert not _in_view(viewport, ends).all(), "the test walk must leave the default view"
+    viewport.frame_motion(walk[None])
+    viewport.render_now()
+    assert _in_view(viewport, ends).all()
+    with pytest.raises(ValueError, match="frames must be"):
+        viewport.frame_motion(walk)
+
+
 def test_decorations_draw_and_clear(viewport: SkeletonViewport) -> None:
     before = _screenshot(viewport)
     path = np.c_[np.linspace(0, 1.5, 20), np.zeros(20), np.linspace(0, 1.0, 20)]
