@@ -842,7 +842,10 @@ class Controller(QObject):
             self._rig, live = rig, False
             w.viewport.set_skeletons(played[0].skeleton.parents, len(played))
             w.viewport.set_layout("overlay" if self.state.layout == "overlay" else "side_by_side", 1.0)
-        w.viewport.set_end_marker(None if shown[0].end is None else np.asarray(shown[0].end, np.float64))
+        lead = w.viewport.offsets[0]  # the end marker and root path belong to the first skeleton
+        w.viewport.set_end_marker(
+            None if shown[0].end is None else np.asarray(shown[0].end, np.float64) + lead
+        )
         if live:  # keep playing from the current frame; the timeline catches up with the details
             self._set_frame(self.state.frame)
             self._live_details = True
@@ -872,7 +875,7 @@ class Controller(QObject):
         if not shown or not played:
             return
         first = played[0]
-        w.viewport.set_trajectory(first.joints[:, first.skeleton.root])
+        w.viewport.set_trajectory(first.joints[:, first.skeleton.root] + w.viewport.offsets[0])
         ghosts = first.joints[np.linspace(0, first.n_frames - 1, GHOSTS).round().astype(int)]
         w.viewport.set_ghosts(ghosts if len(played) == 1 else None)
         w.trajectory.set_generated(_root_xz(first), None)

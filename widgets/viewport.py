@@ -144,6 +144,11 @@ class SkeletonViewport(QWidget):
         if self._mesh is not None:
             self.set_poses(self._poses)
 
+    @property
+    def offsets(self) -> np.ndarray:
+        """(n, 3) layout offset of each skeleton (zeros when overlaid), metres."""
+        return self._offsets.copy()
+
     def skeleton_points(self) -> np.ndarray:
         """Joint positions as drawn (layout offsets included), (n, J, 3)."""
         return (

@@ -104,6 +104,12 @@ def test_drag_between_points_updates_viewport_and_leaves_strip(qtbot, explorer: 
     np.testing.assert_allclose(codes, code_a + t[:, None] * (code_b - code_a), atol=1e-5)
     np.testing.assert_allclose(t, np.linspace(0.0, 1.0, len(codes)), atol=1e-5)
     assert c.state.selection == (a, b)
+    # Side by side, the end marker sits at the first skeleton's end, shifted with that skeleton.
+    viewport = window.viewport
+    lead = viewport.offsets[0]
+    assert lead[0] < 0
+    marker = np.asarray(viewport._end_actor.GetPosition())
+    np.testing.assert_allclose(marker, np.asarray(c.state.shown[0].end) + lead, atol=1e-5)
 
 
 def test_lasso_selects_exactly_the_points_inside(qtbot, explorer: Opened) -> None:
