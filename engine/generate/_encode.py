@@ -12,7 +12,7 @@ from scipy.special import logsumexp
 from engine.errors import ConfigError
 from engine.generate._decode import as_codes
 from engine.modelio import LoadedModel
-from engine.motion.datasets import without_joints
+from engine.motion.datasets import conform_joints
 from engine.motion.motion import Motion
 from engine.train.windows import crop_windows, prepare_clips
 
@@ -22,7 +22,7 @@ def conform(loaded: LoadedModel, motion: Motion) -> Motion:
     are dropped by name when every model joint is present; ConfigError naming both joint lists otherwise."""
     ours, theirs = loaded.skeleton, motion.skeleton
     if not ours.same_topology(theirs) and set(ours.names) <= set(theirs.names):
-        motion = without_joints(motion, [n for n in theirs.names if n not in ours.names])
+        motion = conform_joints(motion, ours.names)
     if not ours.same_topology(motion.skeleton):
         source = motion.meta.get("source", motion.meta.get("path", "the motion"))
         raise ConfigError(

@@ -2,12 +2,15 @@
 
 from __future__ import annotations
 
+import logging
 from collections.abc import Mapping
 
 import numpy as np
 from scipy.spatial.distance import pdist
 
 from engine.errors import ConfigError
+
+log = logging.getLogger(__name__)
 
 
 def apd(motions: np.ndarray) -> float:
@@ -19,8 +22,19 @@ def apd(motions: np.ndarray) -> float:
 
 
 def n_apd(generated: Mapping[int, np.ndarray], real: Mapping[int, np.ndarray]) -> float:
-    """Mean over actions of APD(generated[a]) / APD(real[a]); values are (N, T, J, 3) motions."""
-    ratios = [apd(generated[a]) / apd(real[a]) for a in generated if a in real]
-    if not ratios:
+    """Mean over actions of APD(generated[a]) / APD(real[a]); values are (N, T, J, 3) motions.
+
+    Actions whose real motions do not differ (APD 0, e.g. one real clip drawn repeatedly) have no
+    spread to normalise by and are left out; NaN when no action is left.
+    """
+    shared = [a for a in generated if a in real]
+    if not shared:
         raise ConfigError("n-APD needs at least one action present in both sets")
-    return float(np.mean(ratios))
+    ratios = []
+    for a in shared:
+        spread = apd(real[a])
+        if spread > 0:
+            ratios.append(apd(generated[a]) / spread)
+        else:
+            log.info("n-APD: the real motions of action %s are identical; left out", a)
+    return float(np.mean(ratios)) if ratios else float("nan")

@@ -47,6 +47,9 @@ CACHE_VERSION = 1
 BANDAI_DROP_JOINTS = ("joint_Root",)
 _MOTION_SUFFIXES = (".bvh", ".npz", ".npy")
 _BANDAI_PREFIX = re.compile(r"^dataset-\d+_")
+#: Bandai-Namco clip names, e.g. ``dataset-2_walk-turn-left_feminine_021.bvh``: clips copied out of the
+#: dataset (without its cfg/ folder) keep their labels.
+_BANDAI_NAME = re.compile(r"^dataset-\d+_(?P<action>[a-z]+(?:-[a-z]+)*)_(?P<style>[a-z]+)_\d+\.bvh$")
 
 
 @dataclass(eq=False)
@@ -112,7 +115,10 @@ def load_folder(
         drop = () if drop_joints is None else tuple(drop_joints)
     entries = entries[:limit]
     if not entries:
-        raise DataError(f"{root}: no labelled clips")
+        hint = (
+            "" if pattern or labels else " (name the label with --pattern '(?P<action>...)' or --labels FILE)"
+        )
+        raise DataError(f"{root}: no labelled clips{hint}")
 
     store = _Cache(root, drop) if cache else None
     clips: list[Motion] = []
@@ -208,7 +214,10 @@ def _generic_entries(
         found = []
         for p in files:
             label = label_from_filename(p.name) if p.suffix.lower() == ".npy" else None
-            found.append((p, None if label is None else {"action": label[0], **label[1]}))
+            if label is not None:
+                found.append((p, {"action": label[0], **label[1]}))
+            else:
+                found.append((p, _match_label(_BANDAI_NAME, p.name)))
     entries = []
     for p, label in found:
         if label is None:
@@ -289,6 +298,20 @@ def without_joints(motion: Motion, names: Sequence[str]) -> Motion:
     return Motion(
         motion.joints[:, keep], motion.fps, skel.subset(keep), action=motion.action, meta=motion.meta
     )
+
+
+def conform_joints(motion: Motion, names: Sequence[str]) -> Motion:
+    """``motion`` with exactly the joints ``names``: joints it has beyond them (e.g. Bandai's
+    ground-projected ``joint_Root``) are dropped by name. ConfigError when one of ``names`` is missing."""
+    if tuple(motion.skeleton.names) == tuple(names):
+        return motion
+    missing = [n for n in names if n not in motion.skeleton.names]
+    if missing:
+        source = motion.meta.get("source", "the motion")
+        raise ConfigError(
+            f"{source}: no joint named {', '.join(missing[:5])}{' …' if len(missing) > 5 else ''}"
+        )
+    return without_joints(motion, [n for n in motion.skeleton.names if n not in names])
 
 
 _Parsed = tuple[np.ndarray, float, Skeleton]

@@ -72,3 +72,19 @@ def test_generated_motions_are_recognised_as_their_action(bundled) -> None:
     _, predicted = clf.classify(canonical_windows(windows, clf.config.window))
     # Chance is 0.1; the model card records the full evaluation.
     assert np.mean(predicted == np.array(labels)) > 0.5
+
+
+def test_cli_evaluates_raw_bandai_clips_copied_out_of_the_dataset(bandai_dir, tmp_path, capsys) -> None:
+    heldout = (BUNDLED / "heldout_clips.txt").read_text().split()
+    picked = [name for name in heldout if "_walk_" in name][:3] + [n for n in heldout if "_run_" in n][:3]
+    folder = tmp_path / "mine"
+    folder.mkdir()
+    for name in picked:
+        (folder / name).write_bytes((bandai_dir / "data" / name).read_bytes())
+    out = tmp_path / "eval.json"
+    argv = ["eval", "--model", str(BUNDLED), "--real", str(folder), "--repeats", "2", "--n-per-action", "4"]
+    assert cli.main([*argv, "--json", str(out)]) == 0
+    report = json.loads(out.read_text())
+    assert report["meta"]["n_real_clips"] == 6
+    assert 0.0 <= report["generated"]["accuracy"]["mean"] <= 1.0
+    assert report["real"]["accuracy"]["mean"] > 0.5

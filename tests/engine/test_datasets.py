@@ -12,7 +12,7 @@ import pytest
 from engine.errors import CancelledError, ConfigError, DataError
 from engine.motion import Motion, Skeleton
 from engine.motion.bvh import read_bvh
-from engine.motion.datasets import load_folder
+from engine.motion.datasets import conform_joints, load_folder
 from engine.motion.npz import write_npz
 
 BANDAI_ACTIONS = [
@@ -154,7 +154,7 @@ def test_humanact12_names_label_npy_files(tmp_path: Path) -> None:
 def test_unlabelled_or_unreadable_folders(tmp_path: Path) -> None:
     rng = np.random.default_rng(3)
     write_npz(tmp_path / "x.npz", tiny_clip(rng))
-    with pytest.raises(DataError, match="no labelled clips"):
+    with pytest.raises(DataError, match=r"no labelled clips \(name the label with --pattern"):
         load_folder(tmp_path)
     (tmp_path / "walk_2.npz").write_bytes(b"garbage")
     write_npz(tmp_path / "walk_1.npz", tiny_clip(rng))
@@ -169,3 +169,21 @@ def test_cancel_stops_loading(mini_bandai: Path) -> None:
     with pytest.raises(CancelledError):
         load_folder(mini_bandai, progress=lambda i, n: seen.append(i), cancel=lambda: len(seen) >= 2)
     assert seen == [1, 2]
+
+
+def test_bandai_clips_copied_out_of_the_dataset_keep_their_labels(bandai_dir: Path, tmp_path: Path) -> None:
+    for stem in MINI_STEMS:
+        shutil.copy(bandai_dir / "data" / f"dataset-2_{stem}.bvh", tmp_path)
+    data = load_folder(tmp_path)
+    assert data.layout == "generic" and data.action_names == ["run", "walk", "wave-left-hand"]
+    by_name = {Path(c.meta["source"]).name: c for c in data.clips}
+    clip = by_name["dataset-2_wave-left-hand_feminine_001.bvh"]
+    assert clip.action == "wave-left-hand" and clip.meta["style"] == "feminine"
+    # The raw files keep Bandai's ground-projected root; conform_joints drops it by name.
+    assert clip.skeleton.names[0] == "joint_Root"
+    model_names = clip.skeleton.names[1:]
+    on_model = conform_joints(clip, model_names)
+    assert on_model.skeleton.names == model_names
+    np.testing.assert_array_equal(on_model.joints, clip.joints[:, 1:])
+    with pytest.raises(ConfigError, match="no joint named Tail"):
+        conform_joints(clip, (*model_names, "Tail"))

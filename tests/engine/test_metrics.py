@@ -101,6 +101,10 @@ def test_n_apd_is_ratio_to_real() -> None:
     real = {0: rng.normal(size=(8, 5, 2, 3)), 1: rng.normal(size=(8, 5, 2, 3))}
     gen = {0: 2.0 * real[0], 1: 4.0 * real[1]}
     assert n_apd(gen, real) == pytest.approx(3.0)
+    # An action whose real motions are all the same clip has no spread to normalise by.
+    same = {0: real[0], 1: np.repeat(real[1][:1], 8, axis=0)}
+    assert n_apd(gen, same) == pytest.approx(2.0)
+    assert np.isnan(n_apd({1: gen[1]}, same))
 
 
 def test_mode_homogeneity_known_clusters() -> None:
