@@ -289,7 +289,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p = subparsers.add_parser("sample", help="sample motions of one action from its discovered modes")
     p.add_argument("--model", type=Path, required=True, help="model folder")
     p.add_argument("--action", required=True, help="action name")
-    p.add_argument("--mode", type=int, default=None, help="sample only this mode (implies --strategy mode)")
+    p.add_argument("--mode", type=int, default=None, help="sample only this mode (overrides --strategy)")
     p.add_argument("--n", type=int, default=1, help="how many motions")
     p.add_argument("--end", type=float, nargs=2, metavar=("X", "Z"), help="end location on the floor, metres")
     p.add_argument("--seed", type=int, default=0)
