@@ -176,7 +176,7 @@ def _default_matches(config: OdmoConfig, fingerprint: str, seed: int, any_budget
     prov = meta["provenance"]
     budget = ("epochs", "tf_decay_epochs") if any_budget else ()
     ours = {k: v for k, v in config.to_dict().items() if k not in budget}
-    theirs = {k: v for k, v in meta["config"].items() if k not in budget}
+    theirs = {k: v for k, v in OdmoConfig.from_dict(meta["config"]).to_dict().items() if k not in budget}
     return ours == theirs and prov["data_fingerprint"] == fingerprint and prov["seed"] == seed
 
 

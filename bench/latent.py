@@ -3,7 +3,8 @@
 Run: ``nice python bench/latent.py [--sizes 1000 3000 10000] [--threads 1]``. For each size N, one action of
 N codes drawn from 6 Gaussian clusters: ``discover_modes`` over K = 3..11, then PCA / t-SNE / UMAP fits, and
 the steady-state per-query cost of the interactive calls (inverse of one map point, placing one new code,
-end location of one code; neighbour lookups are built on the first query and kept).
+end location of one code; neighbour lookups are built on the first query and kept). Last, a whole
+``build_bank`` on the bundled model's codes (every action's modes and the three maps).
 """
 
 from __future__ import annotations
@@ -21,9 +22,11 @@ if __package__ in (None, ""):
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from bench._report import record
-from engine.latent.bank import LatentBank
+from engine.latent.bank import LatentBank, build_bank
 from engine.latent.modes import discover_modes
 from engine.latent.projection import make_projection
+
+DEFAULT_MODEL = Path(__file__).resolve().parents[1] / "resources" / "models" / "bandai2-odmo"
 
 
 def _seconds(fn: Callable[[], object]) -> tuple[float, object]:
@@ -39,12 +42,32 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--sizes", type=int, nargs="+", default=[1000, 3000, 10000])
     parser.add_argument("--threads", type=int, default=1)
     parser.add_argument("--dim", type=int, default=20)
+    parser.add_argument(
+        "--bank-of", type=Path, default=DEFAULT_MODEL, help="time a whole bank build on this model's codes"
+    )
     args = parser.parse_args(argv)
     with threadpool_limits(args.threads):
         rows = measure(args.sizes, args.dim)
+        if (args.bank_of / "latent_bank.npz").is_file():
+            rows.append(measure_bank_build(args.bank_of))
     sizes = " ".join(str(s) for s in args.sizes)
     record("latent", rows, f"nice python bench/latent.py --sizes {sizes} --threads {args.threads}")
     return 0
+
+
+def measure_bank_build(model_dir: Path) -> dict[str, object]:
+    """Seconds of ``build_bank`` (modes of every action, PCA, t-SNE, UMAP) on a model's bank codes."""
+    bank = LatentBank.load(model_dir / "latent_bank.npz")
+    seconds, _ = _seconds(
+        lambda: build_bank(
+            bank.codes, bank.actions, bank.ends, bank.sources, bank.meta, bank.action_names, seed=0
+        )
+    )
+    n, k = len(bank.codes), len(bank.action_names)
+    row = {"N": n, "step": "build_bank", "s": float(f"{seconds:.3g}")}
+    row["note"] = f"{model_dir.name}: {k} actions' modes (K = 3..11), PCA, t-SNE, UMAP"
+    print(row, flush=True)
+    return row
 
 
 def measure(sizes: list[int], dim: int) -> list[dict[str, object]]:

@@ -23,6 +23,7 @@ class OdmoConfig:
     ``exact_end`` shears the generated root path so that it ends exactly at r_e (the paper only
     conditions on it), and ``root_relative_poses`` has the pose decoder emit and read back joints
     relative to the generated trajectory (the paper's emits absolute xyz, which drifts free-running).
+    ``contrastive_pull`` scales the same-action pull of the contrastive term (1, the paper's, by default).
     """
 
     n_actions: int
@@ -43,6 +44,7 @@ class OdmoConfig:
     w_traj: float = 1.0
     w_consistency: float = 1.0
     w_contrastive: float = 1.0
+    contrastive_pull: float = 1.0
     w_prior: float = 1.0
     traj_y_weight: float = 1.0
     lr: float = 1e-3
@@ -65,7 +67,8 @@ class OdmoConfig:
             raise ConfigError(f"window must be at least 2 frames, got {self.window}")
         if self.batch_size < 2:
             raise ConfigError("batch_size must be at least 2 (windows come in contrastive pairs)")
-        for name in ("w_recon", "w_traj", "w_consistency", "w_contrastive", "w_prior", "traj_y_weight"):
+        weights = ("w_recon", "w_traj", "w_consistency", "w_contrastive", "w_prior", "traj_y_weight")
+        for name in (*weights, "contrastive_pull"):
             if getattr(self, name) < 0:
                 raise ConfigError(f"{name} must be >= 0, got {getattr(self, name)!r}")
         if self.epochs < 0 or self.tf_decay_epochs < 0:

@@ -27,10 +27,13 @@ def masked_mse(pred: Tensor, target: Tensor, mask: Tensor, axis_weights: Tensor 
     return (per_frame * m).sum() / m.sum().clamp(min=1.0)
 
 
-def contrastive_loss(mu_a: Tensor, mu_b: Tensor, same: Tensor, alpha: float) -> Tensor:
-    """Pairwise loss on code means (B, D): same action 0.5·relu(d² − 0.25), different 0.5·relu(α − d)²."""
+def contrastive_loss(
+    mu_a: Tensor, mu_b: Tensor, same: Tensor, alpha: float, pull_weight: float = 1.0
+) -> Tensor:
+    """Pairwise loss on code means (B, D): same action pull_weight·0.5·relu(d² − 0.25), different
+    0.5·relu(α − d)²."""
     d2 = (mu_a - mu_b).square().sum(dim=1)
-    pull = 0.5 * torch.relu(d2 - 0.25)
+    pull = pull_weight * 0.5 * torch.relu(d2 - 0.25)
     push = 0.5 * torch.relu(alpha - torch.sqrt(d2 + 1e-12)).square()
     return torch.where(same, pull, push).mean()
 
@@ -71,7 +74,7 @@ def odmo_losses(
         "recon": masked_mse(pred_joints, joints, mask),
         "traj": masked_mse(pred_trajectory, trajectory, mask, axis),
         "consistency": masked_mse(pred_joints[:, :, root], pred_trajectory, mask),
-        "contrastive": contrastive_loss(mu[:b], mu[b:], same, config.alpha),
+        "contrastive": contrastive_loss(mu[:b], mu[b:], same, config.alpha, config.contrastive_pull),
         "prior": prior_loss(logvar, config.prior_sigma2),
     }
     weights = {

@@ -270,6 +270,9 @@ def test_contrastive_known_values() -> None:
     # same: 0.5·relu(0.09 − 0.25) = 0, 0.5·relu(1 − 0.25) = 0.375
     # different: 0.5·(5 − 5)² = 0, 0.5·relu(5 − 6)² = 0
     torch.testing.assert_close(contrastive_loss(mu_a, mu_b, same, 5.0), torch.tensor(0.375 / 4))
+    # The pull weight scales only the same-action term; 0 keeps just the push between actions.
+    torch.testing.assert_close(contrastive_loss(mu_a, mu_b, same, 5.0, 0.5), torch.tensor(0.1875 / 4))
+    torch.testing.assert_close(contrastive_loss(mu_a, mu_b, same, 5.0, 0.0), torch.tensor(0.0))
     near = torch.tensor([[1.0, 0.0]])
     torch.testing.assert_close(
         contrastive_loss(torch.zeros(1, 2), near, torch.tensor([False]), 5.0), torch.tensor(8.0)
