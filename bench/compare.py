@@ -59,7 +59,7 @@ ROWS = {
     "odmo_no_contrastive": "ODMO w/o contrastive (plain VAE)",
     "odmo_no_end": "ODMO w/o end location",
     "odmo_push_only": "ODMO, contrastive push only (no same-action pull)",
-    "odmo_default": "ODMO, the bundled default model (its own budget)",
+    "odmo_default": "ODMO, the bundled default model (its own budget and settings)",
     "a2m": "Action2Motion (joint positions)",
 }
 ODMO_VARIANTS: dict[str, dict[str, Any]] = {
@@ -168,18 +168,16 @@ def _finished(folder: Path, epochs: int) -> bool:
     return meta.is_file() and json.loads(meta.read_text()).get("provenance", {}).get("epochs") == epochs
 
 
-def _default_matches(config: OdmoConfig, fingerprint: str, seed: int, any_budget: bool = False) -> bool:
-    """Whether the shipped default model was trained like the ODMO row would be (on the same data and
-    seed, and with the same config; with ``any_budget`` the epochs and teacher-forcing decay may differ)."""
+def _default_matches(config: OdmoConfig | None, fingerprint: str, seed: int) -> bool:
+    """Whether the shipped default model was trained on the same data and seed, and (unless ``config`` is
+    None) with exactly ``config``."""
     meta_file = DEFAULT_MODEL / META_FILE
-    if not meta_file.is_file() or not (any_budget or _finished(DEFAULT_MODEL, config.epochs)):
+    if not meta_file.is_file() or (config is not None and not _finished(DEFAULT_MODEL, config.epochs)):
         return False
     meta = json.loads(meta_file.read_text())
     prov = meta["provenance"]
-    budget = ("epochs", "tf_decay_epochs") if any_budget else ()
-    ours = {k: v for k, v in config.to_dict().items() if k not in budget}
-    theirs = {k: v for k, v in OdmoConfig.from_dict(meta["config"]).to_dict().items() if k not in budget}
-    return ours == theirs and prov["data_fingerprint"] == fingerprint and prov["seed"] == seed
+    same_config = config is None or OdmoConfig.from_dict(meta["config"]) == config
+    return same_config and prov["data_fingerprint"] == fingerprint and prov["seed"] == seed
 
 
 def _bar(name: str, epochs: int) -> tuple[tqdm, Callable[[TrainProgress], None]]:
@@ -273,12 +271,12 @@ def main(argv: Sequence[str] | None = None) -> int:
             bar.close()
             notes[key] = f"trained into {folder}"
         folders[key] = folder
-    odmo_config = OdmoConfig(n_actions=len(names), n_joints=skeleton.n_joints, epochs=args.epochs)
-    if folders["odmo"] != DEFAULT_MODEL and _default_matches(odmo_config, fingerprint, args.seed, True):
+    if DEFAULT_MODEL not in folders.values() and _default_matches(None, fingerprint, args.seed):
         folders["odmo_default"] = DEFAULT_MODEL
         epochs = json.loads((DEFAULT_MODEL / META_FILE).read_text())["provenance"]["epochs"]
         notes["odmo_default"] = (
-            f"{DEFAULT_MODEL.relative_to(REPO)}, trained {epochs} epochs by bench/train_default.py"
+            f"{DEFAULT_MODEL.relative_to(REPO)}, trained {epochs} epochs by bench/train_default.py "
+            "(its MODEL_CARD.md has the command and settings)"
         )
     a2m_config = A2mConfig(n_actions=len(names), n_joints=skeleton.n_joints, epochs=args.epochs)
     folders["a2m"] = args.runs / "a2m"

@@ -50,6 +50,9 @@ def parse_args() -> argparse.Namespace:
     p.add_argument(
         "--tf-decay-epochs", type=int, help="epochs until teacher forcing reaches its floor (default 2/3)"
     )
+    p.add_argument(
+        "--contrastive-pull", type=float, default=1.0, help="weight of the same-action pull (1: the paper's)"
+    )
     p.add_argument("--classifier-epochs", type=int, default=20)
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--repeats", type=int, default=10)
@@ -73,6 +76,7 @@ def main() -> int:
         n_joints=dataset.skeleton.n_joints,
         epochs=args.epochs,
         tf_decay_epochs=args.tf_decay_epochs or max(1, round(TF_DECAY_SHARE * args.epochs)),
+        contrastive_pull=args.contrastive_pull,
     )
     work = args.work
     started = time.time()
@@ -192,6 +196,10 @@ def model_switches(config: OdmoConfig) -> str:
         parts.append(
             "`root_relative_poses` (the decoder emits the local movement profile; the root is the "
             "generated trajectory)"
+        )
+    if config.contrastive_pull != 1.0:
+        parts.append(
+            f"`contrastive_pull = {config.contrastive_pull:g}` (the same-action pull of the contrastive term)"
         )
     if not parts:
         return "the paper's model"
