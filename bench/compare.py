@@ -59,6 +59,7 @@ ROWS = {
     "odmo_no_contrastive": "ODMO w/o contrastive (plain VAE)",
     "odmo_no_end": "ODMO w/o end location",
     "odmo_push_only": "ODMO, contrastive push only (no same-action pull)",
+    "odmo_push_bf16": "ODMO, contrastive push only, trained under bfloat16 autocast",
     "odmo_default": "ODMO, the bundled default model (its own budget and settings)",
     "a2m": "Action2Motion (joint positions)",
 }
@@ -67,6 +68,7 @@ ODMO_VARIANTS: dict[str, dict[str, Any]] = {
     "odmo_no_contrastive": {"w_contrastive": 0.0},
     "odmo_no_end": {"use_end_location": False},
     "odmo_push_only": {"contrastive_pull": 0.0},
+    "odmo_push_bf16": {"contrastive_pull": 0.0, "train_precision": "bfloat16"},
 }
 # (header, metric key, decimals); "→" means closer to the real row is better.
 COLUMNS = (
@@ -299,6 +301,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         ("odmo_no_contrastive", "odmo_no_contrastive", "mode_preserving"),
         ("odmo_no_end", "odmo_no_end", "mode_preserving"),
         ("odmo_push_only", "odmo_push_only", "mode_preserving"),
+        ("odmo_push_bf16", "odmo_push_bf16", "mode_preserving"),
         ("odmo_default", "odmo_default", "mode_preserving"),
     ):
         if key not in folders:

@@ -2,8 +2,8 @@
 
 Synthetic smooth random clips; the full ``engine.train.train`` step is timed (cropping, canonical
 facing, encoder, trajectory and motion generators with parallel scheduled sampling, losses, backward,
-clipping, Adam). Run: ``python bench/train_speed.py [--threads 1 2] [--epochs 3]``. Target: >= 300
-windows/s on the 2-core CPU.
+clipping, Adam). Run: ``python bench/train_speed.py [--threads 1 2] [--precision float32 bfloat16]
+[--epochs 3]``. Target: >= 300 windows/s on the 2-core CPU.
 """
 
 from __future__ import annotations
@@ -20,7 +20,7 @@ if __package__ in (None, ""):
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from bench._report import record
-from engine.model.config import OdmoConfig
+from engine.model.config import TRAIN_PRECISIONS, OdmoConfig
 from engine.motion.motion import Motion
 from engine.motion.skeleton import Skeleton
 from engine.train.loop import TrainProgress, train
@@ -43,10 +43,14 @@ def synthetic_clips(n_per_action: int, rng: np.random.Generator) -> tuple[list[M
     return clips, actions
 
 
-def measure(threads: int, epochs: int, clips: list[Motion], actions: list[str]) -> dict[str, object]:
-    """Steady-state windows/s of the last epoch with ``threads`` torch threads."""
+def measure(
+    threads: int, precision: str, epochs: int, clips: list[Motion], actions: list[str]
+) -> dict[str, object]:
+    """Steady-state windows/s of the last epoch with ``threads`` torch threads and ``precision``."""
     torch.set_num_threads(threads)
-    config = OdmoConfig(n_actions=N_ACTIONS, n_joints=N_JOINTS, epochs=epochs, epoch_size=1024)
+    config = OdmoConfig(
+        n_actions=N_ACTIONS, n_joints=N_JOINTS, epochs=epochs, epoch_size=1024, train_precision=precision
+    )
     last: list[TrainProgress] = []
     with tempfile.TemporaryDirectory() as out:
         train(clips, actions, Path(out), config, device="cpu", val_fraction=0.1, progress=last.append,
@@ -54,6 +58,7 @@ def measure(threads: int, epochs: int, clips: list[Motion], actions: list[str]) 
     final = [p for p in last if p.stage == "train" and p.epoch == epochs][-1]
     return {
         "threads": threads,
+        "train_precision": precision,
         "batch (windows)": config.batch_size,
         "steps/s": round(final.steps_per_s, 2),
         "windows/s": round(final.windows_per_s, 1),
@@ -64,11 +69,12 @@ def measure(threads: int, epochs: int, clips: list[Motion], actions: list[str]) 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("--threads", type=int, nargs="+", default=[1, 2])
+    parser.add_argument("--precision", nargs="+", default=["float32", "bfloat16"], choices=TRAIN_PRECISIONS)
     parser.add_argument("--epochs", type=int, default=3)
     parser.add_argument("--no-record", action="store_true", help="print only")
     args = parser.parse_args()
     clips, actions = synthetic_clips(20, np.random.default_rng(0))
-    rows = [measure(n, args.epochs, clips, actions) for n in args.threads]
+    rows = [measure(n, p, args.epochs, clips, actions) for n in args.threads for p in args.precision]
     for row in rows:
         print(row)
     if not args.no_record:

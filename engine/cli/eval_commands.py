@@ -5,13 +5,13 @@ from __future__ import annotations
 import argparse
 import json
 import math
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
-    from engine.motion.motion import Motion
+    pass
 
 # Printed order of the metrics table; any other metric follows in the order evaluate() returns it.
 TABLE_ORDER = (
@@ -101,19 +101,12 @@ def format_table(result: dict[str, Any]) -> str:
     return "\n".join(lines)
 
 
-def _on_model_joints(clip: Motion, names: Sequence[str]) -> Motion:
-    """``clip`` on the model's joints when it has them all (extra joints dropped), else unchanged so that
-    ``check_compatible`` names the mismatch."""
-    from engine.motion.datasets import conform_joints
-
-    return conform_joints(clip, names) if set(names) <= set(clip.skeleton.names) else clip
-
-
 def _cmd_eval(args: argparse.Namespace) -> int:
     from engine.fileio import atomic_write_text
     from engine.metrics.classifier import META_FILE, load_classifier
     from engine.metrics.evaluate import check_compatible, evaluate
     from engine.modelio import load_model
+    from engine.motion.datasets import drop_extra_joints
 
     loaded = load_model(args.model)
     clf_dir = args.classifier
@@ -121,7 +114,7 @@ def _cmd_eval(args: argparse.Namespace) -> int:
         clf_dir = Path(args.model) / "classifier"
     classifier = None if clf_dir is None else load_classifier(clf_dir)
     data = _load_clips(args.real, args)
-    clips = [_on_model_joints(clip, loaded.skeleton.names) for clip in data.clips]
+    clips = [drop_extra_joints(clip, loaded.skeleton.names) for clip in data.clips]
     check_compatible(loaded, clips, classifier)  # fail before the progress bar appears
     with _bar("evaluating") as progress:
         result = evaluate(

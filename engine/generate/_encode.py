@@ -12,7 +12,7 @@ from scipy.special import logsumexp
 from engine.errors import ConfigError
 from engine.generate._decode import as_codes
 from engine.modelio import LoadedModel
-from engine.motion.datasets import conform_joints
+from engine.motion.datasets import drop_extra_joints
 from engine.motion.motion import Motion
 from engine.train.windows import crop_windows, prepare_clips
 
@@ -21,8 +21,8 @@ def conform(loaded: LoadedModel, motion: Motion) -> Motion:
     """``motion`` on the model's skeleton: extra joints (e.g. Bandai's ground-projected ``joint_Root``)
     are dropped by name when every model joint is present; ConfigError naming both joint lists otherwise."""
     ours, theirs = loaded.skeleton, motion.skeleton
-    if not ours.same_topology(theirs) and set(ours.names) <= set(theirs.names):
-        motion = conform_joints(motion, ours.names)
+    if not ours.same_topology(theirs):
+        motion = drop_extra_joints(motion, ours.names)
     if not ours.same_topology(motion.skeleton):
         source = motion.meta.get("source", motion.meta.get("path", "the motion"))
         raise ConfigError(

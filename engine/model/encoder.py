@@ -47,5 +47,5 @@ class LmpEncoder(nn.Module):
         else:
             idx = (mask.sum(dim=1).long() - 1).clamp(min=0)
             last = out[torch.arange(out.shape[0], device=out.device), idx]
-        mu, logvar = self.head(last).split(self.latent_dim, dim=1)
+        mu, logvar = self.head(last).float().split(self.latent_dim, dim=1)  # float32 under autocast too
         return mu, logvar

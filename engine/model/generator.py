@@ -127,7 +127,7 @@ class MotionGenerator(nn.Module):
         """Poses (B, T, J·3) given every frame's previous pose ``prev`` (B, T, J·3), in one LSTM call."""
         emb = self.embed_act(const + F.linear(prev, self.embed.weight[:, : self.pose_dim]))
         out, _ = self.lstm(emb, state)
-        return self.out(out)
+        return self.out(out).float()  # float32 under autocast too
 
     def forward(
         self,

@@ -54,5 +54,5 @@ class TrajectoryGenerator(nn.Module):
         b, n = emb.shape[0], self.window - 1
         seq = torch.cat([emb.unsqueeze(1).expand(b, n, -1), self.steps.expand(b, n, 1)], dim=2)
         out, _ = self.lstm(seq)
-        steps = self.head(out)
+        steps = self.head(out).float()  # summed below: float32 under autocast too
         return torch.cat([steps.new_zeros(b, 1, 3), steps.cumsum(dim=1)], dim=1)

@@ -300,18 +300,14 @@ def without_joints(motion: Motion, names: Sequence[str]) -> Motion:
     )
 
 
-def conform_joints(motion: Motion, names: Sequence[str]) -> Motion:
-    """``motion`` with exactly the joints ``names``: joints it has beyond them (e.g. Bandai's
-    ground-projected ``joint_Root``) are dropped by name. ConfigError when one of ``names`` is missing."""
-    if tuple(motion.skeleton.names) == tuple(names):
+def drop_extra_joints(motion: Motion, names: Sequence[str]) -> Motion:
+    """``motion`` without its joints beyond ``names`` (e.g. Bandai's ground-projected ``joint_Root``),
+    dropped by name, when it has every joint of ``names``; unchanged otherwise, for the caller's skeleton
+    check to name the mismatch."""
+    have = motion.skeleton.names
+    if tuple(have) == tuple(names) or not set(names) <= set(have):
         return motion
-    missing = [n for n in names if n not in motion.skeleton.names]
-    if missing:
-        source = motion.meta.get("source", "the motion")
-        raise ConfigError(
-            f"{source}: no joint named {', '.join(missing[:5])}{' …' if len(missing) > 5 else ''}"
-        )
-    return without_joints(motion, [n for n in motion.skeleton.names if n not in names])
+    return without_joints(motion, [n for n in have if n not in names])
 
 
 _Parsed = tuple[np.ndarray, float, Skeleton]

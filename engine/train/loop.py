@@ -244,15 +244,16 @@ def train(
             anchors, slot = sampler.anchors(n_pairs, rng)
             partners, same = sampler.partners(slot, rng)
             batch = crop_windows(prepared, np.concatenate([anchors, partners]), rng)
-            terms = _forward(
-                model,
-                config,
-                _Tensors.of(batch, dev),
-                torch.from_numpy(same).to(dev),
-                root,
-                tf_rate=tf_rate,
-                generator=tgen,
-            )
+            with torch.autocast(dev.type, torch.bfloat16, enabled=config.train_precision == "bfloat16"):
+                terms = _forward(
+                    model,
+                    config,
+                    _Tensors.of(batch, dev),
+                    torch.from_numpy(same).to(dev),
+                    root,
+                    tf_rate=tf_rate,
+                    generator=tgen,
+                )
             optimizer.zero_grad(set_to_none=True)
             terms["total"].backward()
             torch.nn.utils.clip_grad_norm_(model.parameters(), config.grad_clip)

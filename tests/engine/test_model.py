@@ -221,9 +221,9 @@ def test_root_relative_poses_put_the_root_on_the_trajectory() -> None:
 
 def test_configs_saved_before_the_switches_load_as_the_paper_model() -> None:
     old = OdmoConfig(n_actions=2, n_joints=5).to_dict()
-    del old["exact_end"], old["root_relative_poses"]
+    del old["exact_end"], old["root_relative_poses"], old["train_precision"]
     cfg = OdmoConfig.from_dict(old)
-    assert not cfg.exact_end and not cfg.root_relative_poses
+    assert not cfg.exact_end and not cfg.root_relative_poses and cfg.train_precision == "float32"
     assert not OdmoModel(cfg).motion_gen.relative
 
 
@@ -316,5 +316,7 @@ def test_config_round_trip_and_validation() -> None:
         OdmoConfig.from_dict({"n_actions": 2})
     with pytest.raises(ConfigError):
         OdmoConfig(n_actions=0, n_joints=21)
+    with pytest.raises(ConfigError, match="train_precision must be one of float32, bfloat16, got 'fp8'"):
+        OdmoConfig(n_actions=10, n_joints=21, train_precision="fp8")
     assert cfg.teacher_forcing(0) == 1.0 and math.isclose(cfg.teacher_forcing(10_000), 0.3)
     assert math.isclose(cfg.teacher_forcing(cfg.tf_decay_epochs // 2), 0.65)
