@@ -1,7 +1,8 @@
 """Decode latency and throughput on CPU (T = 60, 21 joints, 10 actions, default sizes, random weights).
 
-Run: ``python bench/decode.py [--threads 2] [--repeats 50]``. Reference (public ODMO modules, same
-machine class): 17.9 ms for a batch of 2, 1,861 motions/s at batch 1024; aim: < 6 ms, >= 5,000/s.
+Run: ``python bench/decode.py [--threads 2] [--repeats 50]`` (every row at 1 thread and at --threads).
+Reference (public ODMO modules, same machine class): 17.9 ms for a batch of 2, 1,861 motions/s at batch
+1024; aim: < 6 ms, >= 5,000/s.
 """
 
 from __future__ import annotations
@@ -30,9 +31,10 @@ N_ACTIONS, N_JOINTS = 10, 21
 
 
 def _timed(fn: Callable[[], object], repeats: int) -> float:
-    """Median seconds of ``fn`` over ``repeats`` calls, after two warm-up calls."""
-    fn()
-    fn()
+    """Median seconds of ``fn`` over ``repeats`` calls, after warm-up calls (TorchScript specialises the
+    decoder loop during its first calls)."""
+    for _ in range(max(2, repeats // 10)):
+        fn()
     times = []
     for _ in range(repeats):
         start = time.perf_counter()
@@ -85,29 +87,19 @@ def _stages(model: OdmoModel, rng: np.random.Generator, config: OdmoConfig) -> l
     return rows
 
 
-def main(argv: list[str] | None = None) -> int:
-    """Measure and record the decode benchmark."""
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--threads", type=int, default=2)
-    parser.add_argument("--repeats", type=int, default=50)
-    args = parser.parse_args(argv)
-    torch.set_num_threads(args.threads)
-    config = OdmoConfig(n_actions=N_ACTIONS, n_joints=N_JOINTS)
-    model = OdmoModel(config, seed=0).eval()
-    loaded = _loaded(model, config)
-    rng = np.random.default_rng(0)
+def _decodes(loaded: LoadedModel, rng: np.random.Generator, repeats: int) -> list[dict[str, object]]:
+    """Time one decode through the API, then OdmoModel.decode at batch 1, 2, 64 and 1024."""
+    config, model = loaded.config, loaded.model
     code, end = rng.standard_normal(config.latent_dim), np.array([0.5, 0.0, 1.0])
-
-    rows = []
-    one = _timed(lambda: decode(loaded, code, 3, end), args.repeats)
-    rows.append(
+    one = _timed(lambda: decode(loaded, code, 3, end), repeats)
+    rows: list[dict[str, object]] = [
         {
             "what": "engine.generate.decode, one motion (API, Motion built)",
             "batch": 1,
             "ms": round(one * 1e3, 2),
             "motions/s": round(1 / one),
         }
-    )
+    ]
     for batch in (1, 2, 64, 1024):
         z = torch.as_tensor(rng.standard_normal((batch, config.latent_dim)), dtype=torch.float32)
         a = torch.as_tensor(rng.integers(0, N_ACTIONS, batch))
@@ -117,7 +109,7 @@ def main(argv: list[str] | None = None) -> int:
             with torch.inference_mode():
                 model.decode(z, a, e)
 
-        seconds = _timed(run, max(3, args.repeats // max(1, batch // 16)))
+        seconds = _timed(run, max(3, repeats // max(1, batch // 16)))
         rows.append(
             {
                 "what": "OdmoModel.decode (inference_mode)",
@@ -126,7 +118,25 @@ def main(argv: list[str] | None = None) -> int:
                 "motions/s": round(batch / seconds),
             }
         )
-    rows += _stages(model, rng, config)
+    return rows
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Measure and record the decode benchmark at one torch thread (the explorer's decode worker) and at
+    ``--threads``."""
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--threads", type=int, default=2)
+    parser.add_argument("--repeats", type=int, default=50)
+    args = parser.parse_args(argv)
+    config = OdmoConfig(n_actions=N_ACTIONS, n_joints=N_JOINTS)
+    model = OdmoModel(config, seed=0).eval()
+    loaded = _loaded(model, config)
+    rows = []
+    for threads in sorted({1, args.threads}):
+        torch.set_num_threads(threads)
+        rng = np.random.default_rng(0)
+        part = _decodes(loaded, rng, args.repeats) + _stages(model, rng, config)
+        rows += [{"threads": threads} | row for row in part]
     for row in rows:
         print(row)
     record("decode", rows, f"python bench/decode.py --threads {args.threads} --repeats {args.repeats}")

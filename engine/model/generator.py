@@ -14,10 +14,11 @@ from torch import Tensor, nn
 logger = logging.getLogger(__name__)
 
 
-def _ifog(weight: Tensor) -> Tensor:
-    """LSTM gate rows reordered from torch's (i, f, g, o) to (i, f, o, g): the sigmoid gates side by side."""
+def _loop_gates(weight: Tensor) -> Tensor:
+    """LSTM gate rows reordered from torch's (i, f, g, o) to (i, f, o, g), the g rows doubled: one sigmoid
+    over all four then gives tanh(g) = 2·σ(2g) − 1."""
     i, f, g, o = weight.chunk(4, 0)
-    return torch.cat([i, f, o, g], 0)
+    return torch.cat([i, f, o, 2 * g], 0)
 
 
 def _free_run_loop(
@@ -36,25 +37,21 @@ def _free_run_loop(
     ``const`` (B, T, H) is the pose-free part of each frame's input projection, ``bias_next`` (H,) what
     the previous pose's output bias adds to it, ``h0`` / ``c0`` (L, B, H) the initial state, ``fused``
     (H, H) the transposed product W_pose·W_out, ``slope`` the PReLU weight; per layer ``w_ih`` (in, 4H)
-    and ``w_hh`` (H, 4H) are transposed and ``bias`` (4H,) summed, all with gates ordered (i, f, o, g).
+    and ``w_hh`` (H, 4H) are transposed and ``bias`` (4H,) summed, laid out by ``_loop_gates``.
     """
-    hidden = h0.shape[2]
     h = [h0[k] for k in range(len(w_ih))]
     c = [c0[k] for k in range(len(w_ih))]
-    steps = (const + bias_next).transpose(0, 1).contiguous()
+    steps = (const + bias_next).transpose(0, 1).contiguous().unbind(0)
     tops: list[Tensor] = []
     x = const[:, 0]
-    for t in range(const.shape[1]):
+    for t in range(len(steps)):
         if t > 0:
             x = torch.addmm(steps[t], h[-1], fused)
         x = F.prelu(x, slope)
         for k in range(len(w_ih)):
-            gates = torch.addmm(bias[k], x, w_ih[k]).addmm_(h[k], w_hh[k])
-            sig = gates[:, : 3 * hidden].sigmoid()
-            cell = torch.addcmul(
-                sig[:, hidden : 2 * hidden] * c[k], sig[:, :hidden], gates[:, 3 * hidden :].tanh()
-            )
-            x = sig[:, 2 * hidden :] * cell.tanh()
+            i, f, o, g = torch.addmm(bias[k], x, w_ih[k]).addmm_(h[k], w_hh[k]).sigmoid().chunk(4, 1)
+            cell = torch.addcmul(f * c[k] - i, i, g, value=2.0)  # f·c + i·(2g − 1) = f·c + i·tanh(gate)
+            x = o * cell.tanh()
             h[k] = x
             c[k] = cell
         tops.append(x)
@@ -191,13 +188,14 @@ class MotionGenerator(nn.Module):
             w_pose = self.embed.weight[:, : self.pose_dim]
             w_out = self._readback(self.out.weight.t()).t()
             layers = range(lstm.num_layers)
+            param = functools.partial(getattr, lstm)
             prepared = (
                 (w_pose @ w_out).t().contiguous(),
                 self._readback(self.out.bias) @ w_pose.t(),
                 self.embed_act.weight,
-                [_ifog(getattr(lstm, f"weight_ih_l{k}")).t().contiguous() for k in layers],
-                [_ifog(getattr(lstm, f"weight_hh_l{k}")).t().contiguous() for k in layers],
-                [_ifog(getattr(lstm, f"bias_ih_l{k}") + getattr(lstm, f"bias_hh_l{k}")) for k in layers],
+                [_loop_gates(param(f"weight_ih_l{k}")).t().contiguous() for k in layers],
+                [_loop_gates(param(f"weight_hh_l{k}")).t().contiguous() for k in layers],
+                [_loop_gates(param(f"bias_ih_l{k}") + param(f"bias_hh_l{k}")) for k in layers],
             )
         if not tracked and key is not None:
             self._step_cache = (key, prepared)
