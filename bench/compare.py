@@ -195,7 +195,7 @@ def _bar(name: str, epochs: int) -> tuple[tqdm, Callable[[TrainProgress], None]]
     return bar, show
 
 
-def _speed(decode: Callable[[], object], repeats: int = 5) -> float:
+def _speed(decode: Callable[[], object], repeats: int = 20) -> float:
     """Motions per second of ``decode`` (a batch of SPEED_BATCH), median of ``repeats`` after a warm-up."""
     decode()
     times = []
@@ -340,7 +340,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         "classifier and real sets for every row",
         "Reconstruction": "ODMO: encode → decode with the true action and end location; A2M: posterior means "
         "z_1..z_T of the real window, decoded free-running (A2M: a 30-d code per frame; ODMO: one 20-d code)",
-        "Decode speed": f"motions/s at batch {SPEED_BATCH}, median of 5 after a warm-up, CPU, "
+        "Decode speed": f"motions/s at batch {SPEED_BATCH}, median of 20 after a warm-up, CPU, "
         f"{torch.get_num_threads()} torch thread(s); ODMO: one decode of bank codes; A2M: prior sampling",
         "Machine": machine(),
         "Date": dt.datetime.now(dt.UTC).strftime("%Y-%m-%d %H:%M UTC"),
