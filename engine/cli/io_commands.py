@@ -36,7 +36,11 @@ def register(subparsers: Any) -> None:
 
 def _add_reading_options(parser: argparse.ArgumentParser) -> None:
     """Options that say how to read joints-only and pickled inputs."""
-    parser.add_argument("--skeleton", default="smpl24", help="skeleton of a .npy input (default smpl24)")
+    parser.add_argument(
+        "--skeleton",
+        default="auto",
+        help="skeleton of a .npy input: smpl24, smpl22, or auto (the one with as many joints; default)",
+    )
     parser.add_argument("--input-fps", type=float, default=20.0, help="frame rate of a .npy or .pkl input")
     parser.add_argument(
         "--allow-pickle", action="store_true", help="allow reading a .pkl (data-only allow-list unpickler)"

@@ -94,6 +94,11 @@ def smpl24_skeleton() -> Skeleton:
     return Skeleton(SMPL24_NAMES, np.array(SMPL24_PARENTS), np.array(SMPL24_OFFSETS), (), "m")
 
 
+def smpl22_skeleton() -> Skeleton:
+    """SMPL-24 without the two hand joints: the 22-joint body of HumanML3D and AMASS-derived arrays."""
+    return Skeleton(SMPL24_NAMES[:22], np.array(SMPL24_PARENTS[:22]), np.array(SMPL24_OFFSETS[:22]), (), "m")
+
+
 def label_from_filename(name: str) -> tuple[str, dict[str, str]] | None:
     """(coarse action, meta with the fine code) parsed from a HumanAct12 file name, or None if it has none."""
     match = _FILE_RE.search(Path(name).name)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -15,24 +16,50 @@ from engine.motion.skeleton import Skeleton
 UNIT_SCALE = {"m": 1.0, "cm": 0.01, "mm": 0.001}
 
 
-def named_skeleton(name: str) -> Skeleton:
-    """A built-in skeleton by name (``"smpl24"``)."""
-    from engine.motion.humanact12 import smpl24_skeleton
+def _builders() -> dict[str, Callable[[], Skeleton]]:
+    from engine.motion.humanact12 import smpl22_skeleton, smpl24_skeleton
 
-    builders = {"smpl24": smpl24_skeleton}
+    return {"smpl24": smpl24_skeleton, "smpl22": smpl22_skeleton}
+
+
+def named_skeleton(name: str) -> Skeleton:
+    """A built-in skeleton by name (``"smpl24"`` for HumanAct12, ``"smpl22"`` for HumanML3D)."""
+    builders = _builders()
     if name not in builders:
-        raise ConfigError(f"unknown skeleton {name!r}; built in: {', '.join(builders)}")
+        raise ConfigError(f"unknown skeleton {name!r}; built in: auto, {', '.join(builders)}")
     return builders[name]()
 
 
+def _skeleton_for(path: Path, skeleton: Skeleton | str, n_joints: int) -> Skeleton:
+    """``skeleton``, a built-in one by name, or (``"auto"``) the built-in one with ``n_joints`` joints."""
+    if not isinstance(skeleton, str):
+        return skeleton
+    if skeleton != "auto":
+        return named_skeleton(skeleton)
+    for build in _builders().values():
+        if (found := build()).n_joints == n_joints:
+            return found
+    sizes = ", ".join(f"{name} ({build().n_joints})" for name, build in _builders().items())
+    raise MotionFormatError(
+        f"array has {n_joints} joints and no built-in skeleton has as many ({sizes}); "
+        "give the skeleton (e.g. save it as NPZ with its joint tree)",
+        path,
+    )
+
+
 def read_npy(
-    path: str | Path, skeleton: Skeleton | str = "smpl24", fps: float = 20.0, units: str = "m"
+    path: str | Path, skeleton: Skeleton | str = "auto", fps: float = 20.0, units: str = "m"
 ) -> Motion:
-    """Read a (T, J, 3) joint-position array in ``units`` as a Motion on ``skeleton`` (metres)."""
+    """Read a (T, J, 3) joint-position array in ``units`` as a Motion on ``skeleton`` (metres).
+
+    ``skeleton`` is a Skeleton, a built-in name, or ``"auto"``: the built-in skeleton with as many joints
+    as the array (SMPL-24 for HumanAct12, SMPL-22 for HumanML3D).
+    """
     from engine.motion.humanact12 import label_from_filename
 
     path = Path(path)
-    skel = named_skeleton(skeleton) if isinstance(skeleton, str) else skeleton
+    if isinstance(skeleton, str) and skeleton != "auto":
+        named_skeleton(skeleton)  # an unknown name fails before the file is read
     if units not in UNIT_SCALE:
         raise ConfigError(f"unknown units {units!r}; choose one of {', '.join(UNIT_SCALE)}")
     try:
@@ -43,6 +70,7 @@ def read_npy(
         raise MotionFormatError(
             f"expected a numeric (T, J, 3) array, got {joints.dtype} {joints.shape}", path
         )
+    skel = _skeleton_for(path, skeleton, joints.shape[1])
     if joints.shape[1] != skel.n_joints:
         raise MotionFormatError(
             f"array has {joints.shape[1]} joints but the skeleton has {skel.n_joints}", path

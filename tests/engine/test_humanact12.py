@@ -9,8 +9,14 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from engine.errors import MotionFormatError
-from engine.motion.humanact12 import ACTIONS, label_from_filename, read_actor_pickle, smpl24_skeleton
+from engine.errors import ConfigError, MotionFormatError
+from engine.motion.humanact12 import (
+    ACTIONS,
+    label_from_filename,
+    read_actor_pickle,
+    smpl22_skeleton,
+    smpl24_skeleton,
+)
 from engine.motion.npy import read_npy
 from engine.motion.safe_pickle import load_data_pickle
 
@@ -76,6 +82,28 @@ def test_read_npy_labels_from_the_name(tmp_path: Path) -> None:
     np.save(path, np.zeros((10, 24, 3), np.float32))
     motion = read_npy(path)
     assert (motion.action, motion.meta["fine_class"], motion.fps) == ("run", "0301", 20.0)
+
+
+def test_read_npy_picks_the_built_in_skeleton_by_joint_count(tmp_path: Path) -> None:
+    rng = np.random.default_rng(1)
+    for n_joints, name in ((24, "right_hand"), (22, "right_wrist")):
+        path = tmp_path / f"clip{n_joints}.npy"
+        joints = rng.normal(size=(9, n_joints, 3)).astype(np.float32)
+        np.save(path, joints)
+        motion = read_npy(path)
+        assert motion.skeleton.n_joints == n_joints and motion.skeleton.names[-1] == name
+        np.testing.assert_array_equal(motion.joints, joints)
+    body = smpl22_skeleton()  # HumanML3D's 22 joints: SMPL-24 without the hands
+    full = smpl24_skeleton()
+    assert body.names == full.names[:22]
+    np.testing.assert_array_equal(body.parents, full.parents[:22])
+    np.save(tmp_path / "seven.npy", np.zeros((4, 7, 3)))
+    with pytest.raises(MotionFormatError, match=r"seven.npy: array has 7 joints .*smpl24 \(24\), smpl22"):
+        read_npy(tmp_path / "seven.npy")
+    with pytest.raises(MotionFormatError, match=r"clip22\.npy: array has 22 joints but the skeleton has 24"):
+        read_npy(tmp_path / "clip22.npy", skeleton="smpl24")
+    with pytest.raises(ConfigError, match="unknown skeleton 'smplx'; built in: auto, smpl24, smpl22"):
+        read_npy(tmp_path / "clip22.npy", skeleton="smplx")
 
 
 @pytest.mark.parametrize("protocol", [2, 4, 5])

@@ -127,8 +127,8 @@ def test_npy_round_trip_units_and_checks(tmp_path: Path) -> None:
     assert motion.skeleton.same_topology(skel)
     write_npy(tmp_path / "m.npy", motion)
     assert np.array_equal(np.load(tmp_path / "m.npy"), motion.joints)
-    np.save(tmp_path / "wrong.npy", joints[:, :22])
-    with pytest.raises(MotionFormatError, match="22 joints"):
+    np.save(tmp_path / "wrong.npy", joints[:, :21])
+    with pytest.raises(MotionFormatError, match="21 joints"):
         read_npy(tmp_path / "wrong.npy")
     np.save(tmp_path / "obj.npy", np.array([None], dtype=object), allow_pickle=True)
     with pytest.raises(MotionFormatError, match=r"obj\.npy"):
