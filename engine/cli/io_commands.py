@@ -43,6 +43,12 @@ def _add_reading_options(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument("--input-fps", type=float, default=20.0, help="frame rate of a .npy or .pkl input")
     parser.add_argument(
+        "--up-axis",
+        choices=("y", "z"),
+        default="y",
+        help="up axis of a BVH input (BVH is Y-up; some tools write Z-up)",
+    )
+    parser.add_argument(
         "--allow-pickle", action="store_true", help="allow reading a .pkl (data-only allow-list unpickler)"
     )
 
@@ -58,6 +64,8 @@ def _read_clips(path: Path, args: argparse.Namespace) -> list[Motion]:
         return read_actor_pickle(path, allow_pickle=args.allow_pickle, fps=args.input_fps)
     if path.suffix.lower() == ".npy":
         return [read_motion(path, skeleton=args.skeleton, fps=args.input_fps)]
+    if path.suffix.lower() == ".bvh":
+        return [read_motion(path, up_axis=args.up_axis)]
     return [read_motion(path)]
 
 
@@ -80,6 +88,9 @@ def _info(args: argparse.Namespace) -> int:
     print(f"duration:  {m.duration:.3f} s")
     print(f"joints:    {m.n_joints} (root {m.skeleton.names[m.skeleton.root]})")
     print(f"units:     {m.skeleton.units}")
+    if "source_up_axis" in m.meta:
+        hint = "; the body stands along z: if the file is Z-up, add --up-axis z"
+        print(f"up axis:   {m.meta['source_up_axis']}{hint if m.meta.get('looks_z_up') else ''}")
     print(f"rotations: {rotations}")
     print(f"label:     {m.action or '-'}")
     return 0

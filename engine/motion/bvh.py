@@ -13,6 +13,10 @@ Reading
   ``meta["varying_translation_joints"]`` names the joints; consumers then work from ``joints``.
 - Units: ``units="auto"`` takes the median non-zero bone length L of frame 0 (raw file units):
   L < 1 is metres, L < 100 centimetres, otherwise millimetres. ``units`` or ``scale`` override it.
+- Up axis: BVH is Y-up, but some tools write Z-up files: ``up_axis="z"`` turns one into Y-up
+  ((x, y, z) → (x, z, −y), rotations conjugated). A file read as Y-up whose body stands along z gets
+  ``meta["looks_z_up"] = True`` as a hint (``odmo info`` shows it); it is never turned silently, since
+  long creatures lie along z in Y-up files too.
 
 Writing
 -------
@@ -37,6 +41,7 @@ import numpy as np
 
 from engine.errors import ConfigError, MotionFormatError
 from engine.fileio import atomic_write_text
+from engine.motion.axes import UP_AXES, to_y_up
 from engine.motion.motion import Motion
 from engine.motion.rotations import euler_to_quat, forward_kinematics, quat_continuity, quat_to_euler
 from engine.motion.skeleton import Skeleton, sanitize_name
@@ -112,21 +117,27 @@ class _Tokens:
         return value
 
 
-def read_bvh(path: str | Path, units: str = "auto", scale: float | None = None) -> Motion:
-    """Read a BVH file into a Motion in metres (see the module docstring for the conventions)."""
+def read_bvh(path: str | Path, units: str = "auto", scale: float | None = None, up_axis: str = "y") -> Motion:
+    """Read a BVH file into a Motion in metres, Y up (see the module docstring for the conventions)."""
     try:
         data = Path(path).read_bytes()
     except OSError as exc:
         raise MotionFormatError(f"cannot read the file: {exc.strerror or exc}", path) from None
-    return parse_bvh_text(_decode(data, str(path)), str(path), units=units, scale=scale)
+    return parse_bvh_text(_decode(data, str(path)), str(path), units=units, scale=scale, up_axis=up_axis)
 
 
 def parse_bvh_text(
-    text: str, path: str = "<string>", units: str = "auto", scale: float | None = None
+    text: str,
+    path: str = "<string>",
+    units: str = "auto",
+    scale: float | None = None,
+    up_axis: str = "y",
 ) -> Motion:
-    """Parse the text of a BVH file into a Motion in metres; ``path`` only names it in errors."""
+    """Parse the text of a BVH file into a Motion in metres, Y up; ``path`` only names it in errors."""
     if units not in UNITS_TO_M and units != "auto":
         raise ConfigError(f"units must be 'auto' or one of {', '.join(UNITS_TO_M)}, got {units!r}")
+    if up_axis not in UP_AXES:
+        raise ConfigError(f"up axis must be one of {', '.join(UP_AXES)}, got {up_axis!r}")
     if scale is not None and not (np.isfinite(scale) and scale > 0):
         raise ConfigError(f"scale must be a positive number, got {scale!r}")
     if "\x00" in text:
@@ -143,7 +154,7 @@ def parse_bvh_text(
         raise MotionFormatError("the hierarchy declares no channels", path, motion_at + 1)
     frames, frame_time, data_start = _parse_motion_header(lines, motion_at, path)
     values = _parse_frames(lines, data_start, frames, n_channels, path)
-    return _build_motion(nodes, values, frame_time, path, units, scale)
+    return to_y_up(_build_motion(nodes, values, frame_time, path, units, scale), up_axis)
 
 
 def _decode(data: bytes, path: str) -> str:

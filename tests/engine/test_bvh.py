@@ -348,3 +348,56 @@ def test_resample_slerps_rotations() -> None:
         motion.resample(0)
     with pytest.raises(ConfigError):
         motion.resample(float("nan"))
+
+
+def _chain_bvh(offsets: dict[str, str], root_channels: str, joint_channels: str, rows: list[str]) -> str:
+    """A hips → spine → head chain with one leg, in the given offsets, channel orders and frame rows."""
+    return (
+        "HIERARCHY\nROOT Hips\n{\n  OFFSET 0 0 0\n"
+        f"  CHANNELS 6 {root_channels}\n"
+        f"  JOINT Spine\n  {{\n    OFFSET {offsets['Spine']}\n    CHANNELS 3 {joint_channels}\n"
+        f"    JOINT Head\n    {{\n      OFFSET {offsets['Head']}\n      CHANNELS 3 {joint_channels}\n"
+        f"      End Site\n      {{\n        OFFSET {offsets['Head']}\n      }}\n    }}\n  }}\n"
+        f"  JOINT LeftLeg\n  {{\n    OFFSET {offsets['LeftLeg']}\n    CHANNELS 3 {joint_channels}\n"
+        f"    End Site\n    {{\n      OFFSET {offsets['LeftLeg']}\n    }}\n  }}\n}}\n"
+        f"MOTION\nFrames: {len(rows)}\nFrame Time: 0.05\n" + "\n".join(rows) + "\n"
+    )
+
+
+def test_z_up_files_are_turned_y_up_with_consistent_rotations(tmp_path: Path) -> None:
+    rng = np.random.default_rng(4)
+    y_rows, z_rows = [], []
+    for _ in range(5):
+        px, py, pz = rng.uniform(-50, 50, 3)
+        angles = rng.uniform(-60, 60, (4, 3))  # (Z, X, Y) degrees of the root and each joint
+        y_rows.append(" ".join(f"{v:.4f}" for v in (px, py, pz, *angles.ravel())))
+        # Written by hand for Z-up: (x, y, z) → (x, −z, y); a turn about y becomes one about z and a turn
+        # about z one about −y, so Z X Y angles (a, b, c) become Y X Z angles (−a, b, c).
+        z_angles = np.column_stack([-angles[:, 0], angles[:, 1], angles[:, 2]])
+        z_rows.append(" ".join(f"{v:.4f}" for v in (px, -pz, py, *z_angles.ravel())))
+    positions = "Xposition Yposition Zposition"
+    y_text = _chain_bvh(
+        {"Spine": "0 10 0", "Head": "0 10 0", "LeftLeg": "5 -15 0"},
+        f"{positions} Zrotation Xrotation Yrotation", "Zrotation Xrotation Yrotation", y_rows
+    )  # fmt: skip
+    z_text = _chain_bvh(
+        {"Spine": "0 0 10", "Head": "0 0 10", "LeftLeg": "5 0 -15"},
+        f"{positions} Yrotation Xrotation Zrotation", "Yrotation Xrotation Zrotation", z_rows
+    )  # fmt: skip
+    y_file, z_file = tmp_path / "y_up.bvh", tmp_path / "z_up.bvh"
+    y_file.write_text(y_text)
+    z_file.write_text(z_text)
+    truth = read_bvh(y_file, units="cm")
+    assert "looks_z_up" not in truth.meta and truth.meta["source_up_axis"] == "y"
+    as_read = read_bvh(z_file, units="cm")
+    assert as_read.meta["looks_z_up"]  # lying on its back: the hint
+    turned = read_bvh(z_file, units="cm", up_axis="z")
+    assert turned.meta["source_up_axis"] == "z" and "looks_z_up" not in turned.meta
+    np.testing.assert_allclose(turned.joints, truth.joints, atol=1e-5)
+    np.testing.assert_allclose(turned.skeleton.offsets, truth.skeleton.offsets, atol=1e-9)
+    fk = forward_kinematics(turned.skeleton, turned.local_rotations, turned.root_translation)
+    np.testing.assert_allclose(fk, truth.joints, atol=1e-5)
+    write_bvh(tmp_path / "out.bvh", turned)
+    np.testing.assert_allclose(read_bvh(tmp_path / "out.bvh").joints, truth.joints, atol=1e-4)
+    with pytest.raises(ConfigError, match="up axis must be one of y, z, got 'x'"):
+        read_bvh(y_file, up_axis="x")
