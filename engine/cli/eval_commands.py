@@ -8,10 +8,7 @@ import math
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
-
-if TYPE_CHECKING:
-    pass
+from typing import Any
 
 # Printed order of the metrics table; any other metric follows in the order evaluate() returns it.
 TABLE_ORDER = (

@@ -205,8 +205,11 @@ class MotionGenerator(nn.Module):
         """Autoregressive decode, one frame at a time with LSTM cells sharing the nn.LSTM weights.
 
         The per-frame loop runs in TorchScript where available; every frame's pose is read out of the
-        stacked top-layer hidden states with a single matrix product.
+        stacked top-layer hidden states with a single matrix product. It always runs in float32, also
+        under autocast (whose lower precision would compound over the frames).
         """
-        fused, bias_next, slope, w_ih, w_hh, bias = self._step_weights()
-        tops = _compiled_loop()(const, bias_next, state[0], state[1], fused, slope, w_ih, w_hh, bias)
-        return self.out(tops)
+        with torch.autocast(const.device.type, enabled=False):
+            fused, bias_next, slope, w_ih, w_hh, bias = self._step_weights()
+            h0, c0 = state[0].float(), state[1].float()
+            tops = _compiled_loop()(const.float(), bias_next, h0, c0, fused, slope, w_ih, w_hh, bias)
+            return self.out(tops)

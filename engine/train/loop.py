@@ -13,6 +13,7 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from datetime import UTC, datetime
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import torch
@@ -130,6 +131,12 @@ def _forward(
     )
 
 
+def _identity_config(config: dict[str, Any]) -> dict[str, Any]:
+    """A checkpoint's config with every field filled in as ``OdmoConfig.from_dict`` reads it (so a
+    checkpoint from before a field existed still matches), ``epochs`` left out (resuming may extend it)."""
+    return {k: v for k, v in OdmoConfig.from_dict(config).to_dict().items() if k != "epochs"}
+
+
 def _validation_set(
     prepared: PreparedClips, val_idx: np.ndarray, seed: int, device: torch.device
 ) -> tuple[_Tensors, torch.Tensor] | None:
@@ -214,14 +221,17 @@ def train(
     start_epoch, train_seconds = 0, 0.0
     ckpt = checkpoint_path(out)
     identity = {
-        "config": {k: v for k, v in config.to_dict().items() if k != "epochs"},
+        "config": _identity_config(config.to_dict()),
         "fingerprint": fingerprint,
         "seed": seed,
         "val_fraction": val_fraction,
     }
     if resume and ckpt.exists():
         start_epoch, extra = load_checkpoint(ckpt, model=model, optimizer=optimizer, rng=rng, torch_rng=tgen)
-        if extra.get("identity") != identity:
+        saved = extra.get("identity")
+        if isinstance(saved, dict) and isinstance(saved.get("config"), dict):
+            saved = saved | {"config": _identity_config(saved["config"])}
+        if saved != identity:
             raise ModelFormatError(f"{ckpt}: checkpoint is from a different config, seed or data set")
         rows, train_seconds = list(extra["log"]), float(extra["train_seconds"])
         log.info("resuming %s after epoch %d", out, start_epoch)
