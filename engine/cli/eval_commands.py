@@ -10,6 +10,8 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
+from engine.cli.options import add_up_axis
+
 # Printed order of the metrics table; any other metric follows in the order evaluate() returns it.
 TABLE_ORDER = (
     "accuracy",
@@ -48,12 +50,13 @@ def _bar(desc: str) -> Iterator[Callable[[str, float], None]]:
 def _load_clips(path: str, args: argparse.Namespace) -> Any:
     from engine.motion.datasets import load_folder
 
-    return load_folder(path, pattern=args.pattern, labels=args.labels)
+    return load_folder(path, pattern=args.pattern, labels=args.labels, up_axis=args.up_axis)
 
 
 def _add_label_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--pattern", help="file-name regex with (?P<action>...) (folders without sidecars)")
     parser.add_argument("--labels", help="CSV/JSON sidecar of labels, relative to the folder")
+    add_up_axis(parser)
 
 
 def _cmd_train_classifier(args: argparse.Namespace) -> int:

@@ -7,6 +7,7 @@ from collections import Counter
 from pathlib import Path
 from typing import Any
 
+from engine.cli.options import add_up_axis
 from engine.errors import ConfigError, MotionFormatError
 from engine.motion.motion import Motion
 
@@ -42,12 +43,7 @@ def _add_reading_options(parser: argparse.ArgumentParser) -> None:
         help="skeleton of a .npy input: smpl24, smpl22, or auto (the one with as many joints; default)",
     )
     parser.add_argument("--input-fps", type=float, default=20.0, help="frame rate of a .npy or .pkl input")
-    parser.add_argument(
-        "--up-axis",
-        choices=("y", "z"),
-        default="y",
-        help="up axis of a BVH input (BVH is Y-up; some tools write Z-up)",
-    )
+    add_up_axis(parser)
     parser.add_argument(
         "--allow-pickle", action="store_true", help="allow reading a .pkl (data-only allow-list unpickler)"
     )
@@ -55,24 +51,41 @@ def _add_reading_options(parser: argparse.ArgumentParser) -> None:
 
 def _read_clips(path: Path, args: argparse.Namespace) -> list[Motion]:
     """The clip(s) in a motion file."""
+    from engine.motion.axes import to_y_up
     from engine.motion.formats import read_motion
     from engine.motion.humanact12 import read_actor_pickle
 
     if not path.is_file():
         raise MotionFormatError("no such file", path)
     if path.suffix.lower() in _PICKLE_SUFFIXES:
-        return read_actor_pickle(path, allow_pickle=args.allow_pickle, fps=args.input_fps)
+        clips = read_actor_pickle(path, allow_pickle=args.allow_pickle, fps=args.input_fps)
+        return [to_y_up(clip, args.up_axis) for clip in clips]
     if path.suffix.lower() == ".npy":
-        return [read_motion(path, skeleton=args.skeleton, fps=args.input_fps)]
-    if path.suffix.lower() == ".bvh":
-        return [read_motion(path, up_axis=args.up_axis)]
-    return [read_motion(path)]
+        return [read_motion(path, args.up_axis, skeleton=args.skeleton, fps=args.input_fps)]
+    return [read_motion(path, args.up_axis)]
+
+
+def _z_up_hint(motion: Motion) -> str | None:
+    """A hint when ``motion``, read as Y-up, stands along z (None otherwise)."""
+    from engine.motion.axes import looks_z_up
+
+    if "turned_from_up_axis" in motion.meta or not looks_z_up(motion):
+        return None
+    return "the body stands along z: if the file is Z-up, add --up-axis z"
+
+
+def _up_axis_line(motion: Motion) -> str:
+    """How ``motion`` was read: Y-up, turned from Z-up, or Y-up with a hint that it may be Z-up."""
+    if "turned_from_up_axis" in motion.meta:
+        return f"y (turned from {motion.meta['turned_from_up_axis']}-up)"
+    hint = _z_up_hint(motion)
+    return "y" if hint is None else f"y; {hint}"
 
 
 def _info(args: argparse.Namespace) -> int:
     """Print frames, fps, duration, joints, units and label of a file, or a folder's summary."""
     if args.path.is_dir():
-        return _folder_info(args.path)
+        return _folder_info(args.path, args.up_axis)
     clips = _read_clips(args.path, args)
     if len(clips) > 1:
         counts = Counter(c.action for c in clips)
@@ -88,15 +101,13 @@ def _info(args: argparse.Namespace) -> int:
     print(f"duration:  {m.duration:.3f} s")
     print(f"joints:    {m.n_joints} (root {m.skeleton.names[m.skeleton.root]})")
     print(f"units:     {m.skeleton.units}")
-    if "source_up_axis" in m.meta:
-        hint = "; the body stands along z: if the file is Z-up, add --up-axis z"
-        print(f"up axis:   {m.meta['source_up_axis']}{hint if m.meta.get('looks_z_up') else ''}")
+    print(f"up axis:   {_up_axis_line(m)}")
     print(f"rotations: {rotations}")
     print(f"label:     {m.action or '-'}")
     return 0
 
 
-def _folder_info(path: Path) -> int:
+def _folder_info(path: Path, up_axis: str) -> int:
     """Print a dataset folder's clips per action, total frames and fingerprint."""
     from tqdm import tqdm
 
@@ -108,7 +119,7 @@ def _folder_info(path: Path) -> int:
             bar.total = total
             bar.update(done - bar.n)
 
-        data = load_folder(path, progress=progress)
+        data = load_folder(path, progress=progress, up_axis=up_axis)
     counts = Counter(c.action for c in data.clips)
     frames = sum(c.n_frames for c in data.clips)
     print(f"folder:      {data.root} ({data.layout} layout)")
@@ -143,6 +154,8 @@ def _convert(args: argparse.Namespace) -> int:
         report = write_motion(motion, out)
         joints = report.get("joints", motion.n_joints)
         print(f"wrote {out}: {motion.n_frames} frames at {motion.fps:g} fps, {joints} joints")
+        if (hint := _z_up_hint(motion)) is not None:
+            print(f"  note: {hint}")
         if report.get("rotations_from") == "ik":
             print(
                 f"  joints converted to rotations by IK: mean FK error {report['fk_error_m'] * 1000:.2f} mm"

@@ -13,6 +13,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from tqdm import tqdm
 
+from engine.cli.options import add_up_axis
 from engine.errors import ConfigError, DataError
 
 if TYPE_CHECKING:
@@ -122,7 +123,7 @@ def config_overrides(pairs: Sequence[str]) -> dict[str, Any]:
 def _dataset(args: argparse.Namespace) -> Dataset:
     from engine.motion.datasets import load_folder
 
-    return load_folder(args.data, pattern=args.pattern, labels=args.labels)
+    return load_folder(args.data, pattern=args.pattern, labels=args.labels, up_axis=args.up_axis)
 
 
 def _cmd_train(args: argparse.Namespace) -> int:
@@ -231,7 +232,7 @@ def _cmd_encode(args: argparse.Namespace) -> int:
     from engine.motion.motion import Motion
 
     loaded = load_model(args.model)
-    motion = Motion.from_file(args.file)
+    motion = Motion.from_file(args.file, up_axis=args.up_axis)
     code, guess = encode(loaded, motion)
     mode = None
     if guess is not None and loaded.bank is not None and guess in loaded.bank.modes:
@@ -255,6 +256,7 @@ def _data_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--data", type=Path, required=True, help="dataset folder")
     p.add_argument("--pattern", help="regex with a named group 'action' that labels file names")
     p.add_argument("--labels", type=Path, help="CSV/JSON label sidecar (file,action[,style])")
+    add_up_axis(p)
     p.add_argument(
         "--projections",
         type=lambda text: tuple(x for x in text.split(",") if x),
@@ -316,5 +318,6 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p = subparsers.add_parser("encode", help="print the latent code of a motion file, its action and mode")
     p.add_argument("--model", type=Path, required=True, help="model folder")
     p.add_argument("file", type=Path, help="motion file (BVH, NPZ, NPY)")
+    add_up_axis(p)
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.set_defaults(func=_cmd_encode)

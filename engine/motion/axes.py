@@ -18,9 +18,19 @@ Z_UP_TO_Y_UP = Rotation.from_euler("x", -90.0, degrees=True)
 _Z_UP_RATIO = 1.5
 
 
-def looks_z_up(joints: np.ndarray) -> bool:
-    """Whether the body in ``joints`` (T, J, 3) stands along z: its median per-frame z extent is 1.5× its
-    y extent. A hint only, since a long creature (a snake, a horse) lies along z in a Y-up file too."""
+def check_up_axis(up_axis: str) -> None:
+    """ConfigError unless ``up_axis`` is one of UP_AXES."""
+    if up_axis not in UP_AXES:
+        raise ConfigError(f"up axis must be one of {', '.join(UP_AXES)}, got {up_axis!r}")
+
+
+def looks_z_up(motion: Motion) -> bool:
+    """Whether the body stands along z: the median per-frame z extent of its joints is 1.5× the y extent.
+
+    The root is left out (it may be a ground projection left behind, like Bandai's ``joint_Root``). A hint
+    only, since a long creature (a snake, a horse) lies along z in a Y-up file too.
+    """
+    joints = np.delete(motion.joints, motion.skeleton.root, axis=1)
     if joints.shape[1] == 0:
         return False
     spans = np.median(np.ptp(joints, axis=1), axis=0)
@@ -51,15 +61,11 @@ def rotated(motion: Motion, rotation: Rotation) -> Motion:
 
 
 def to_y_up(motion: Motion, up_axis: str = "y") -> Motion:
-    """``motion``, whose source is ``up_axis``-up, in the Y-up frame; ``meta["source_up_axis"]`` records the
-    source's axis, and ``meta["looks_z_up"]`` is True when a motion read as Y-up stands along z (a Z-up
-    file read as Y-up, or a creature that lies along z)."""
-    if up_axis not in UP_AXES:
-        raise ConfigError(f"up axis must be one of {', '.join(UP_AXES)}, got {up_axis!r}")
-    if up_axis == "z":
-        motion = rotated(motion, Z_UP_TO_Y_UP)
-    elif looks_z_up(np.delete(motion.joints, motion.skeleton.root, axis=1)):
-        # Without the root, which may be a ground projection left behind (Bandai's joint_Root).
-        motion.meta["looks_z_up"] = True
-    motion.meta["source_up_axis"] = up_axis
-    return motion
+    """``motion``, whose source is ``up_axis``-up, in the Y-up frame (itself when it already is); a turned
+    motion records ``meta["turned_from_up_axis"] = "z"``."""
+    check_up_axis(up_axis)
+    if up_axis == "y":
+        return motion
+    turned = rotated(motion, Z_UP_TO_Y_UP)
+    turned.meta["turned_from_up_axis"] = up_axis
+    return turned

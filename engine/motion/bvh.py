@@ -14,9 +14,8 @@ Reading
 - Units: ``units="auto"`` takes the median non-zero bone length L of frame 0 (raw file units):
   L < 1 is metres, L < 100 centimetres, otherwise millimetres. ``units`` or ``scale`` override it.
 - Up axis: BVH is Y-up, but some tools write Z-up files: ``up_axis="z"`` turns one into Y-up
-  ((x, y, z) → (x, z, −y), rotations conjugated). A file read as Y-up whose body stands along z gets
-  ``meta["looks_z_up"] = True`` as a hint (``odmo info`` shows it); it is never turned silently, since
-  long creatures lie along z in Y-up files too.
+  ((x, y, z) → (x, z, −y), rotations conjugated; see ``engine.motion.axes``). Nothing is turned
+  silently: ``odmo info`` and ``odmo convert`` only say when a body read as Y-up stands along z.
 
 Writing
 -------
@@ -41,7 +40,7 @@ import numpy as np
 
 from engine.errors import ConfigError, MotionFormatError
 from engine.fileio import atomic_write_text
-from engine.motion.axes import UP_AXES, to_y_up
+from engine.motion.axes import check_up_axis, to_y_up
 from engine.motion.motion import Motion
 from engine.motion.rotations import euler_to_quat, forward_kinematics, quat_continuity, quat_to_euler
 from engine.motion.skeleton import Skeleton, sanitize_name
@@ -136,8 +135,7 @@ def parse_bvh_text(
     """Parse the text of a BVH file into a Motion in metres, Y up; ``path`` only names it in errors."""
     if units not in UNITS_TO_M and units != "auto":
         raise ConfigError(f"units must be 'auto' or one of {', '.join(UNITS_TO_M)}, got {units!r}")
-    if up_axis not in UP_AXES:
-        raise ConfigError(f"up axis must be one of {', '.join(UP_AXES)}, got {up_axis!r}")
+    check_up_axis(up_axis)
     if scale is not None and not (np.isfinite(scale) and scale > 0):
         raise ConfigError(f"scale must be a positive number, got {scale!r}")
     if "\x00" in text:

@@ -38,6 +38,7 @@ import numpy as np
 
 from engine.errors import CancelledError, ConfigError, DataError, OdmoError
 from engine.fileio import atomic_write
+from engine.motion.axes import check_up_axis
 from engine.motion.motion import Motion
 from engine.motion.skeleton import Skeleton
 
@@ -98,8 +99,10 @@ def load_folder(
     limit: int | None = None,
     drop_joints: Sequence[str] | None = None,
     on_error: str = "raise",
+    up_axis: str = "y",
 ) -> Dataset:
-    """Load the labelled clips of a dataset folder (Bandai-Namco, HumanAct12 or pattern/sidecar labels)."""
+    """Load the labelled clips of a dataset folder (Bandai-Namco, HumanAct12 or pattern/sidecar labels);
+    ``up_axis`` is the files' up axis (they are turned Y-up)."""
     root = Path(path).expanduser().resolve()
     if not root.is_dir():
         raise DataError(f"{root}: not a folder")
@@ -120,7 +123,8 @@ def load_folder(
         )
         raise DataError(f"{root}: no labelled clips{hint}")
 
-    store = _Cache(root, drop) if cache else None
+    check_up_axis(up_axis)
+    store = _Cache(root, drop, up_axis) if cache else None
     clips: list[Motion] = []
     skipped: list[str] = []
     digests: list[str] = []
@@ -128,7 +132,7 @@ def load_folder(
         if cancel is not None and cancel():
             raise CancelledError(f"loading {root} cancelled after {i} of {len(entries)} clips")
         try:
-            digest, motion = _load_clip(entry, store, drop)
+            digest, motion = _load_clip(entry, store, drop, up_axis)
         except OdmoError as exc:
             if on_error == "raise":
                 raise DataError(f"{entry.path}: {exc}") from None
@@ -270,8 +274,9 @@ def _read_sidecar(path: Path) -> dict[str, dict[str, Any]]:
     return table
 
 
-def _load_clip(entry: _Entry, store: _Cache | None, drop: Sequence[str]) -> tuple[str, Motion]:
-    """(content hash, parsed clip without the ``drop`` joints) of one file, from the cache if it has it."""
+def _load_clip(entry: _Entry, store: _Cache | None, drop: Sequence[str], up_axis: str) -> tuple[str, Motion]:
+    """(content hash, parsed clip without the ``drop`` joints, turned Y-up) of one file, from the cache if
+    it has it."""
     from engine.motion.formats import read_motion
 
     try:
@@ -281,7 +286,7 @@ def _load_clip(entry: _Entry, store: _Cache | None, drop: Sequence[str]) -> tupl
     digest = hashlib.blake2b(data, digest_size=16).hexdigest()
     parsed = store.get(digest) if store is not None else None
     if parsed is None:
-        motion = without_joints(read_motion(entry.path), drop)
+        motion = without_joints(read_motion(entry.path, up_axis=up_axis), drop)
         parsed = (motion.joints, motion.fps, motion.skeleton)
         if store is not None:
             store.put(digest, parsed)
@@ -316,8 +321,10 @@ _Parsed = tuple[np.ndarray, float, Skeleton]
 class _Cache:
     """Parsed clips (joints, fps, skeleton) of one folder by content hash, in one NPZ file (no pickles)."""
 
-    def __init__(self, root: Path, drop: Sequence[str]) -> None:
-        key = hashlib.sha1("\n".join([str(root), str(CACHE_VERSION), *drop]).encode()).hexdigest()[:16]
+    def __init__(self, root: Path, drop: Sequence[str], up_axis: str) -> None:
+        turned = [f"up_axis={up_axis}"] if up_axis != "y" else []  # Y-up keys predate the option
+        key = "\n".join([str(root), str(CACHE_VERSION), *drop, *turned])
+        key = hashlib.sha1(key.encode()).hexdigest()[:16]
         self.path = cache_dir() / "datasets" / f"{root.name}-{key}.npz"
         self.entries: dict[str, _Parsed] = {}
         self.used: set[str] = set()

@@ -11,21 +11,25 @@ from engine.motion.motion import Motion
 SUPPORTED = (".bvh", ".npz", ".npy")
 
 
-def read_motion(path: str | Path, **kwargs: Any) -> Motion:
-    """Read a motion file; ``kwargs`` go to the format's reader (e.g. ``skeleton=`` for .npy)."""
+def read_motion(path: str | Path, up_axis: str = "y", **kwargs: Any) -> Motion:
+    """Read a motion file whose up axis is ``up_axis`` into the Y-up frame; ``kwargs`` go to the format's
+    reader (e.g. ``skeleton=`` for .npy)."""
+    from engine.motion.axes import check_up_axis, to_y_up
+
     path = Path(path)
     suffix = _suffix(path)
+    check_up_axis(up_axis)
     if suffix == ".bvh":
         from engine.motion.bvh import read_bvh
 
-        return read_bvh(path, **kwargs)
+        return read_bvh(path, up_axis=up_axis, **kwargs)
     if suffix == ".npz":
         from engine.motion.npz import read_npz
 
-        return read_npz(path, **kwargs)
+        return to_y_up(read_npz(path, **kwargs), up_axis)
     from engine.motion.npy import read_npy
 
-    return read_npy(path, **kwargs)
+    return to_y_up(read_npy(path, **kwargs), up_axis)
 
 
 def write_motion(motion: Motion, path: str | Path, **kwargs: Any) -> dict[str, Any]:

@@ -95,7 +95,7 @@ def smpl24_skeleton() -> Skeleton:
 
 
 def smpl22_skeleton() -> Skeleton:
-    """SMPL-24 without the two hand joints: the 22-joint body of HumanML3D and AMASS-derived arrays."""
+    """SMPL-24 without the two hand joints: the 22-joint body of HumanML3D's joint arrays."""
     return Skeleton(SMPL24_NAMES[:22], np.array(SMPL24_PARENTS[:22]), np.array(SMPL24_OFFSETS[:22]), (), "m")
 
 

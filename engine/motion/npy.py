@@ -58,8 +58,6 @@ def read_npy(
     from engine.motion.humanact12 import label_from_filename
 
     path = Path(path)
-    if isinstance(skeleton, str) and skeleton != "auto":
-        named_skeleton(skeleton)  # an unknown name fails before the file is read
     if units not in UNIT_SCALE:
         raise ConfigError(f"unknown units {units!r}; choose one of {', '.join(UNIT_SCALE)}")
     try:

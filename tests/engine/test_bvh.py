@@ -10,6 +10,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from engine.errors import ConfigError, MotionFormatError
+from engine.motion.axes import looks_z_up
 from engine.motion.bvh import format_bvh, parse_bvh_text, read_bvh, write_bvh
 from engine.motion.motion import Motion
 from engine.motion.rotations import euler_to_quat, forward_kinematics
@@ -388,11 +389,10 @@ def test_z_up_files_are_turned_y_up_with_consistent_rotations(tmp_path: Path) ->
     y_file.write_text(y_text)
     z_file.write_text(z_text)
     truth = read_bvh(y_file, units="cm")
-    assert "looks_z_up" not in truth.meta and truth.meta["source_up_axis"] == "y"
-    as_read = read_bvh(z_file, units="cm")
-    assert as_read.meta["looks_z_up"]  # lying on its back: the hint
+    assert not looks_z_up(truth) and "turned_from_up_axis" not in truth.meta
+    assert looks_z_up(read_bvh(z_file, units="cm"))  # read as Y-up, it lies on its back
     turned = read_bvh(z_file, units="cm", up_axis="z")
-    assert turned.meta["source_up_axis"] == "z" and "looks_z_up" not in turned.meta
+    assert turned.meta["turned_from_up_axis"] == "z" and not looks_z_up(turned)
     np.testing.assert_allclose(turned.joints, truth.joints, atol=1e-5)
     np.testing.assert_allclose(turned.skeleton.offsets, truth.skeleton.offsets, atol=1e-9)
     fk = forward_kinematics(turned.skeleton, turned.local_rotations, turned.root_translation)

@@ -107,13 +107,18 @@ def test_a_z_up_bvh_gets_a_hint_and_reads_upright_with_up_axis_z(
     upright = read_bvh(bandai_dir / "data" / "dataset-2_walk_normal_001.bvh")
     lying = tmp_path / "z_up.bvh"
     write_bvh(lying, rotated(upright, Z_UP_TO_Y_UP.inv()))  # joints only: through IK, joint_Root left out
+    hint = "the body stands along z: if the file is Z-up, add --up-axis z"
     assert main(["info", str(lying)]) == 0
-    assert "up axis:   y; the body stands along z: if the file is Z-up, add --up-axis z" in (
-        capsys.readouterr().out
-    )
+    assert f"up axis:   y; {hint}\n" in capsys.readouterr().out
+    assert main(["convert", str(lying), str(tmp_path / "lying.npz")]) == 0
+    assert f"  note: {hint}\n" in capsys.readouterr().out
     out = tmp_path / "upright.npz"
     assert main(["convert", str(lying), str(out), "--up-axis", "z"]) == 0
+    assert "note:" not in capsys.readouterr().out
     error = np.linalg.norm(read_npz(out).joints - upright.joints[:, 1:], axis=2)
     assert error.mean() < 0.01  # metres: the IK fit of the joints-only export
-    assert main(["info", str(lying), "--up-axis", "z"]) == 0
-    assert "up axis:   z\n" in capsys.readouterr().out
+    assert main(["info", str(out)]) == 0
+    assert "up axis:   y (turned from z-up)\n" in capsys.readouterr().out
+    # Every input format takes the option: the lying NPZ turns upright like the BVH it came from.
+    assert main(["convert", str(tmp_path / "lying.npz"), str(tmp_path / "again.npz"), "--up-axis", "z"]) == 0
+    np.testing.assert_allclose(read_npz(tmp_path / "again.npz").joints, read_npz(out).joints, atol=1e-5)

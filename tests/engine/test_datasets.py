@@ -120,6 +120,24 @@ def test_pattern_labels_with_extra_groups(tmp_path: Path) -> None:
         load_folder(tmp_path, pattern=r"(?P<label>\w+)")
 
 
+def test_z_up_folders_turn_upright_and_are_cached_apart(tmp_path: Path) -> None:
+    rng = np.random.default_rng(2)
+    folder = tmp_path / "zup"
+    folder.mkdir()
+    for name in ["jump_01", "crawl_01"]:
+        write_npz(folder / f"{name}.npz", tiny_clip(rng))
+    pattern = r"^(?P<action>[a-z]+)_"
+    as_is = load_folder(folder, pattern=pattern)
+    turned = load_folder(folder, pattern=pattern, up_axis="z")
+    again = load_folder(folder, pattern=pattern)  # from the cache: the Y-up entries, not the turned ones
+    for a, b, c in zip(as_is.clips, turned.clips, again.clips, strict=True):
+        x, y, z = np.moveaxis(a.joints, 2, 0)
+        np.testing.assert_allclose(b.joints, np.stack([x, z, -y], axis=2), atol=1e-6)
+        np.testing.assert_array_equal(c.joints, a.joints)
+    with pytest.raises(ConfigError, match="up axis must be one of y, z, got 'up'"):
+        load_folder(folder, pattern=pattern, up_axis="up")
+
+
 @pytest.mark.parametrize("kind", ["csv", "json"])
 def test_sidecar_labels(tmp_path: Path, kind: str) -> None:
     rng = np.random.default_rng(1)
