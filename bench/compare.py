@@ -195,19 +195,22 @@ def _bar(name: str, epochs: int) -> tuple[tqdm, Callable[[TrainProgress], None]]
     return bar, show
 
 
-def _speed(decode: Callable[[], object], repeats: int = 20) -> float:
-    """Motions per second of ``decode`` (a batch of SPEED_BATCH), median of ``repeats`` after a warm-up."""
-    decode()
-    times = []
-    for _ in range(repeats):
-        t0 = time.perf_counter()
+def speeds(decoders: dict[str, Callable[[], object]], repeats: int = 20) -> dict[str, float]:
+    """Motions per second of each decoder (a batch of SPEED_BATCH): the median of ``repeats`` rounds that
+    time every decoder once in turn, so that the machine's load drifts over all of them alike."""
+    times: dict[str, list[float]] = {name: [] for name in decoders}
+    for decode in decoders.values():
         decode()
-        times.append(time.perf_counter() - t0)
-    return SPEED_BATCH / float(np.median(times))
+    for _ in range(repeats):
+        for name, decode in decoders.items():
+            t0 = time.perf_counter()
+            decode()
+            times[name].append(time.perf_counter() - t0)
+    return {name: SPEED_BATCH / float(np.median(t)) for name, t in times.items()}
 
 
-def odmo_speed(loaded: LoadedModel) -> float:
-    """Decoded ODMO motions/s at batch 64 (codes and end locations of the bank)."""
+def odmo_decoder(loaded: LoadedModel) -> Callable[[], None]:
+    """One ODMO decode of a batch of 64 (codes and end locations of the bank)."""
     bank = loaded.bank
     idx = np.arange(SPEED_BATCH) % len(bank.codes)
     z = torch.from_numpy(np.asarray(bank.codes[idx], np.float32))
@@ -220,11 +223,11 @@ def odmo_speed(loaded: LoadedModel) -> float:
         with torch.inference_mode():
             loaded.model.decode(z, actions, ends)
 
-    return _speed(decode)
+    return decode
 
 
-def a2m_speed(loaded: LoadedA2m) -> float:
-    """A2M motions/s at batch 64 (prior sampling, seed 0)."""
+def a2m_decoder(loaded: LoadedA2m) -> Callable[[], None]:
+    """One A2M sampling of a batch of 64 (prior sampling, seed 0)."""
     actions = torch.arange(SPEED_BATCH) % loaded.config.n_actions
     generator = torch.Generator().manual_seed(0)
 
@@ -232,7 +235,7 @@ def a2m_speed(loaded: LoadedA2m) -> float:
         with torch.inference_mode():
             loaded.model.sample(actions, generator)
 
-    return _speed(decode)
+    return decode
 
 
 def _check_same_real(first: dict[str, Any], other: dict[str, Any], row: str) -> None:
@@ -294,6 +297,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         notes["a2m"] = f"trained into {folders['a2m']}"
 
     entries: list[dict[str, Any]] = []
+    decoders: dict[str, Callable[[], None]] = {}
     real: dict[str, dict[str, float]] = {}
     for row, key, strategy in (
         ("odmo", "odmo", "mode_preserving"),
@@ -311,13 +315,18 @@ def main(argv: Sequence[str] | None = None) -> int:
         atomic_write_text(args.runs / f"eval_{row}.json", json.dumps(report, indent=2))
         real = real or report["real"]
         _check_same_real(real, report["real"], row)
-        entries.append({"row": row, "generated": report["generated"], "speed": odmo_speed(loaded)})
+        entries.append({"row": row, "generated": report["generated"]})
+        decoders[row] = odmo_decoder(loaded)
         log.info("%s evaluated", row)
     a2m = load_a2m(folders["a2m"], device="cpu")
     report = evaluate_a2m(a2m, test_clips, classifier, **evaluation)
     atomic_write_text(args.runs / "eval_a2m.json", json.dumps(report, indent=2))
     _check_same_real(real, report["real"], "a2m")
-    entries.append({"row": "a2m", "generated": report["generated"], "speed": a2m_speed(a2m)})
+    entries.append({"row": "a2m", "generated": report["generated"]})
+    decoders["a2m"] = a2m_decoder(a2m)
+    measured = speeds(decoders)
+    for entry in entries:
+        entry["speed"] = measured[entry["row"]]
 
     windows = f"{a2m_config.epoch_size:,}"
     info = {
@@ -340,8 +349,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         "classifier and real sets for every row",
         "Reconstruction": "ODMO: encode → decode with the true action and end location; A2M: posterior means "
         "z_1..z_T of the real window, decoded free-running (A2M: a 30-d code per frame; ODMO: one 20-d code)",
-        "Decode speed": f"motions/s at batch {SPEED_BATCH}, median of 20 after a warm-up, CPU, "
-        f"{torch.get_num_threads()} torch thread(s); ODMO: one decode of bank codes; A2M: prior sampling",
+        "Decode speed": f"motions/s at batch {SPEED_BATCH}, median of 20 rounds that time every row in "
+        f"turn, CPU, {torch.get_num_threads()} torch thread(s); ODMO: one decode of bank codes; A2M: prior "
+        "sampling",
         "Machine": machine(),
         "Date": dt.datetime.now(dt.UTC).strftime("%Y-%m-%d %H:%M UTC"),
         "Wall time": f"{(time.time() - started) / 60:.1f} min",
