@@ -1,4 +1,4 @@
-"""Up axis: motions authored Z-up (3ds Max, some exporters) turned into the engine's Y-up frame."""
+"""Up axis: motions stored Z-up (some exporters, raw AMASS joints) turned into the engine's Y-up frame."""
 
 from __future__ import annotations
 

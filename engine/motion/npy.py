@@ -42,7 +42,7 @@ def _skeleton_for(path: Path, skeleton: Skeleton | str, n_joints: int) -> Skelet
     sizes = ", ".join(f"{name} ({build().n_joints})" for name, build in _builders().items())
     raise MotionFormatError(
         f"array has {n_joints} joints and no built-in skeleton has as many ({sizes}); "
-        "give the skeleton (e.g. save it as NPZ with its joint tree)",
+        "pass a Skeleton to read_npy, or store the clip as NPZ with its joint tree",
         path,
     )
 
