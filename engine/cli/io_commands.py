@@ -66,20 +66,25 @@ def _read_clips(path: Path, args: argparse.Namespace) -> list[Motion]:
 
 
 def _z_up_hint(motion: Motion) -> str | None:
-    """A hint when ``motion``, read as Y-up, stands along z (None otherwise)."""
+    """A hint when ``motion`` stands along z once read (None otherwise)."""
     from engine.motion.axes import looks_z_up
 
-    if "turned_from_up_axis" in motion.meta or not looks_z_up(motion):
+    if not looks_z_up(motion):
         return None
+    if "turned_from_up_axis" in motion.meta:
+        return "the body stands along z after turning: if the file is Y-up, leave out --up-axis z"
     return "the body stands along z: if the file is Z-up, add --up-axis z"
 
 
 def _up_axis_line(motion: Motion) -> str:
     """How ``motion`` was read: Y-up, turned from Z-up, or Y-up with a hint that it may be Z-up."""
-    if "turned_from_up_axis" in motion.meta:
-        return f"y (turned from {motion.meta['turned_from_up_axis']}-up)"
+    shown = (
+        f"y (turned from {motion.meta['turned_from_up_axis']}-up)"
+        if "turned_from_up_axis" in motion.meta
+        else "y"
+    )
     hint = _z_up_hint(motion)
-    return "y" if hint is None else f"y; {hint}"
+    return shown if hint is None else f"{shown}; {hint}"
 
 
 def _info(args: argparse.Namespace) -> int:

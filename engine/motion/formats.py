@@ -54,6 +54,8 @@ def _suffix(path: Path) -> str:
     suffix = path.suffix.lower()
     if suffix not in SUPPORTED:
         raise MotionFormatError(
-            f"unknown motion file type {suffix or '(none)'!r}; supported: {', '.join(SUPPORTED)}", path
+            f"{f'unknown motion file type {suffix!r}' if suffix else 'no file extension'}; "
+            f"supported: {', '.join(SUPPORTED)}",
+            path,
         )
     return suffix

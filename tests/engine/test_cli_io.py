@@ -119,6 +119,12 @@ def test_a_z_up_bvh_gets_a_hint_and_reads_upright_with_up_axis_z(
     assert error.mean() < 0.01  # metres: the IK fit of the joints-only export
     assert main(["info", str(out)]) == 0
     assert "up axis:   y (turned from z-up)\n" in capsys.readouterr().out
+    upright_bvh = tmp_path / "upright.bvh"
+    write_bvh(upright_bvh, upright)
+    assert main(["info", str(upright_bvh)]) == 0
+    assert "up axis:   y\n" in capsys.readouterr().out
+    assert main(["info", str(upright_bvh), "--up-axis", "z"]) == 0  # a Y-up file turned by mistake
+    assert "after turning: if the file is Y-up, leave out --up-axis z\n" in capsys.readouterr().out
     # Every input format takes the option: the lying NPZ turns upright like the BVH it came from.
     assert main(["convert", str(tmp_path / "lying.npz"), str(tmp_path / "again.npz"), "--up-axis", "z"]) == 0
     np.testing.assert_allclose(read_npz(tmp_path / "again.npz").joints, read_npz(out).joints, atol=1e-5)
