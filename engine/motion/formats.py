@@ -14,11 +14,10 @@ SUPPORTED = (".bvh", ".npz", ".npy")
 def read_motion(path: str | Path, up_axis: str = "y", **kwargs: Any) -> Motion:
     """Read a motion file whose up axis is ``up_axis`` into the Y-up frame; ``kwargs`` go to the format's
     reader (e.g. ``skeleton=`` for .npy)."""
-    from engine.motion.axes import check_up_axis, to_y_up
+    from engine.motion.axes import to_y_up
 
     path = Path(path)
     suffix = _suffix(path)
-    check_up_axis(up_axis)
     if suffix == ".bvh":
         from engine.motion.bvh import read_bvh
 
