@@ -138,7 +138,6 @@ def _folder_info(path: Path, up_axis: str) -> int:
 
 def _convert(args: argparse.Namespace) -> int:
     """Convert one file (or each clip of a pickle into a folder), optionally resampled."""
-    from engine.motion.datasets import without_joints
     from engine.motion.formats import SUPPORTED, write_motion
 
     clips = _read_clips(args.input, args)
@@ -152,7 +151,7 @@ def _convert(args: argparse.Namespace) -> int:
             unknown = sorted(set(args.drop_joints) - set(motion.skeleton.names))
             if unknown:
                 raise ConfigError(f"no joint named {', '.join(unknown)}")
-            motion = without_joints(motion, args.drop_joints)
+            motion = motion.without_joints(args.drop_joints)
         if args.fps is not None and abs(args.fps - motion.fps) > 1e-6:
             motion = motion.resample(args.fps)
         out = args.output / f"{i:04d}_{motion.action}.{args.to}" if from_pickle else args.output

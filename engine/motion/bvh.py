@@ -477,11 +477,7 @@ def _without_stretching_root(motion: Motion) -> tuple[Motion, str | None]:
     length = np.linalg.norm(motion.joints[:, children[0]] - motion.joints[:, root], axis=-1)
     if np.ptp(length) <= _STRETCH_TOLERANCE_M:
         return motion, None
-    keep = [j for j in range(skel.n_joints) if j != root]
-    reduced = Motion(
-        motion.joints[:, keep], motion.fps, skel.subset(keep), action=motion.action, meta=motion.meta
-    )
-    return reduced, skel.names[root]
+    return motion.without_joints([skel.names[root]]), skel.names[root]
 
 
 def _depth_first(skeleton: Skeleton) -> list[int]:

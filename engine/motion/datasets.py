@@ -286,23 +286,12 @@ def _load_clip(entry: _Entry, store: _Cache | None, drop: Sequence[str], up_axis
     digest = hashlib.blake2b(data, digest_size=16).hexdigest()
     parsed = store.get(digest) if store is not None else None
     if parsed is None:
-        motion = without_joints(read_motion(entry.path, up_axis=up_axis), drop)
+        motion = read_motion(entry.path, up_axis=up_axis).without_joints(drop)
         parsed = (motion.joints, motion.fps, motion.skeleton)
         if store is not None:
             store.put(digest, parsed)
     joints, fps, skeleton = parsed
     return digest, Motion(joints, fps, skeleton, action=entry.action, meta=dict(entry.meta))
-
-
-def without_joints(motion: Motion, names: Sequence[str]) -> Motion:
-    """``motion`` (positions, label, meta) without the joints called ``names``; absent names are ignored."""
-    skel = motion.skeleton
-    keep = [j for j, n in enumerate(skel.names) if n not in names]
-    if len(keep) == skel.n_joints:
-        return motion
-    return Motion(
-        motion.joints[:, keep], motion.fps, skel.subset(keep), action=motion.action, meta=motion.meta
-    )
 
 
 def drop_extra_joints(motion: Motion, names: Sequence[str]) -> Motion:
@@ -312,7 +301,7 @@ def drop_extra_joints(motion: Motion, names: Sequence[str]) -> Motion:
     have = motion.skeleton.names
     if tuple(have) == tuple(names) or not set(names) <= set(have):
         return motion
-    return without_joints(motion, [n for n in have if n not in names])
+    return motion.without_joints([n for n in have if n not in names])
 
 
 _Parsed = tuple[np.ndarray, float, Skeleton]

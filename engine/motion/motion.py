@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
@@ -79,6 +80,15 @@ class Motion:
     def with_joints(self, joints: np.ndarray, **changes: Any) -> Motion:
         """A copy with new joint positions and no rotations (they would no longer match)."""
         return replace(self, joints=joints, local_rotations=None, root_translation=None, **changes)
+
+    def without_joints(self, names: Sequence[str]) -> Motion:
+        """This motion (positions, label, meta) without the joints called ``names``; absent names are
+        ignored. A dropped parent's offset folds into its child (``Skeleton.subset``)."""
+        skel = self.skeleton
+        keep = [j for j, n in enumerate(skel.names) if n not in names]
+        if len(keep) == skel.n_joints:
+            return self
+        return Motion(self.joints[:, keep], self.fps, skel.subset(keep), action=self.action, meta=self.meta)
 
     def resample(self, fps: float) -> Motion:
         """This motion at ``fps`` (linear interpolation of positions, slerp of rotations)."""

@@ -9,7 +9,6 @@ from scipy.spatial.transform import Rotation
 from engine.errors import ConfigError
 from engine.motion import Motion, Skeleton
 from engine.motion.bvh import read_bvh
-from engine.motion.datasets import without_joints
 from engine.motion.humanact12 import smpl24_skeleton
 from engine.motion.ik import joints_to_rotations
 
@@ -91,7 +90,7 @@ def test_noisy_joints_report_the_true_mean_error() -> None:
 
 def test_ik_on_a_real_bandai_clip(bandai_dir) -> None:
     clip = read_bvh(bandai_dir / "data" / "dataset-2_walk_normal_001.bvh")
-    body = without_joints(clip, ["joint_Root"])
+    body = clip.without_joints(["joint_Root"])
     rest, local, root_t, err = joints_to_rotations(body)
     assert body.skeleton.names[rest.root] == "Hips" and body.n_joints == 21
     assert err < 0.01
