@@ -2,21 +2,23 @@
 
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import torch
-from safetensors import SafetensorError
-from safetensors.torch import load as load_safetensors
-from safetensors.torch import save as save_safetensors
 
 from engine.errors import ConfigError, ModelFormatError
-from engine.fileio import atomic_write_bytes, atomic_write_text
 from engine.model.a2m import A2mConfig, A2mModel
-from engine.modelio import FORMAT, FORMAT_VERSION, META_FILE, WEIGHTS_FILE, read_meta, resolve_device
+from engine.modelio import (
+    META_FILE,
+    WEIGHTS_FILE,
+    read_meta,
+    read_weights,
+    resolve_device,
+    write_model_folder,
+)
 from engine.motion.skeleton import Skeleton
 
 ARCH = "a2m"
@@ -49,29 +51,9 @@ def save_a2m(
     config = model.config
     if len(action_names) != config.n_actions or skeleton.n_joints != config.n_joints:
         raise ConfigError("action names / skeleton do not match the model config")
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
-    tensors = {k: v.detach().to("cpu").contiguous() for k, v in model.state_dict().items()}
-    atomic_write_bytes(
-        out / WEIGHTS_FILE, save_safetensors(tensors, metadata={"format": FORMAT, "arch": ARCH})
+    write_model_folder(
+        out_dir, model, config.to_dict(), skeleton, action_names, provenance, root_height, ARCH
     )
-    meta = {
-        "format": FORMAT,
-        "format_version": FORMAT_VERSION,
-        "arch": ARCH,
-        "config": config.to_dict(),
-        "skeleton": {
-            "names": list(skeleton.names),
-            "parents": [int(p) for p in skeleton.parents],
-            "offsets": [[float(v) for v in row] for row in skeleton.offsets],
-        },
-        "fps": float(config.fps),
-        "window": int(config.window),
-        "action_names": list(action_names),
-        "root_height": float(root_height),
-        "provenance": provenance,
-    }
-    atomic_write_text(out / META_FILE, json.dumps(meta, indent=2) + "\n")
 
 
 def _read_meta(path: Path) -> dict[str, Any]:
@@ -82,29 +64,6 @@ def _read_meta(path: Path) -> dict[str, Any]:
     return meta
 
 
-def _read_weights(path: Path, model: A2mModel) -> dict[str, torch.Tensor]:
-    """Tensors of ``path``, checked name by name, shape and dtype against ``model``."""
-    try:
-        tensors = load_safetensors(path.read_bytes())
-    except FileNotFoundError:
-        raise ModelFormatError(f"{path}: missing weights file") from None
-    except (OSError, SafetensorError, ValueError, RuntimeError) as exc:
-        raise ModelFormatError(f"{path}: corrupt weights: {exc}") from exc
-    expected = model.state_dict()
-    if set(tensors) != set(expected):
-        missing, extra = sorted(set(expected) - set(tensors)), sorted(set(tensors) - set(expected))
-        raise ModelFormatError(
-            f"{path}: weights do not match the config (missing {missing}, unexpected {extra})"
-        )
-    for name, ref in expected.items():
-        if tensors[name].shape != ref.shape or tensors[name].dtype != ref.dtype:
-            raise ModelFormatError(
-                f"{path}: tensor {name} is {tuple(tensors[name].shape)} {tensors[name].dtype}, "
-                f"expected {tuple(ref.shape)} {ref.dtype}"
-            )
-    return tensors
-
-
 def load_a2m(model_dir: str | Path, device: str = "cpu") -> LoadedA2m:
     """Read an A2M folder strictly: bad, newer or non-A2M files raise ModelFormatError."""
     folder = Path(model_dir)
@@ -112,7 +71,10 @@ def load_a2m(model_dir: str | Path, device: str = "cpu") -> LoadedA2m:
         raise ModelFormatError(f"{folder}: not a model folder")
     meta_path = folder / META_FILE
     meta = _read_meta(meta_path)
-    config = A2mConfig.from_dict(meta["config"])
+    try:
+        config = A2mConfig.from_dict(meta["config"])
+    except ModelFormatError as exc:
+        raise ModelFormatError(f"{meta_path}: {exc}") from None
     try:
         sk = meta["skeleton"]
         skeleton = Skeleton(tuple(sk["names"]), np.array(sk["parents"]), np.array(sk["offsets"], dtype=float))
@@ -123,7 +85,7 @@ def load_a2m(model_dir: str | Path, device: str = "cpu") -> LoadedA2m:
     if len(names) != config.n_actions or skeleton.n_joints != config.n_joints:
         raise ModelFormatError(f"{meta_path}: action names or skeleton disagree with the config")
     model = A2mModel(config)
-    model.load_state_dict(_read_weights(folder / WEIGHTS_FILE, model))
+    model.load_state_dict(read_weights(folder / WEIGHTS_FILE, model, meta))
     model.to(resolve_device(device)).eval()
     return LoadedA2m(
         model=model,

@@ -37,3 +37,11 @@ class ConfigError(OdmoError):
 
 class CancelledError(OdmoError):
     """Long work was cancelled by its caller."""
+
+
+class FolderBusyError(OdmoError):
+    """Another process holds the write lock of an output or model folder."""
+
+
+class TooLargeError(OdmoError):
+    """An input file or a requested size exceeds the stated limits (see :mod:`engine.limits`)."""

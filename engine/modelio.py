@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import hashlib
 import json
 import logging
 from dataclasses import dataclass
@@ -16,6 +17,7 @@ from safetensors.torch import save as save_safetensors
 
 from engine.errors import ConfigError, ModelFormatError
 from engine.fileio import atomic_write_bytes, atomic_write_text
+from engine.limits import check_file_size
 from engine.model.config import OdmoConfig
 from engine.model.odmo import OdmoModel
 from engine.motion.skeleton import Skeleton
@@ -26,10 +28,15 @@ if TYPE_CHECKING:
 log = logging.getLogger(__name__)
 
 FORMAT = "odmo-explorer-model"
-FORMAT_VERSION = 1
+#: 2 added the content checksums ``weights_sha256`` and ``bank_sha256``; version-1 folders load unverified.
+FORMAT_VERSION = 2
 WEIGHTS_FILE = "model.safetensors"
 META_FILE = "model.json"
 BANK_FILE = "latent_bank.npz"
+_REQUIRED_KEYS = ("config", "skeleton", "action_names", "root_height", "provenance")
+_KNOWN_KEYS = {
+    "format", "format_version", "arch", "fps", "window", "weights_sha256", "bank_sha256", *_REQUIRED_KEYS
+}  # fmt: skip
 
 
 @dataclass
@@ -70,29 +77,95 @@ def save_model(
     provenance: dict[str, Any],
     root_height: float,
 ) -> None:
-    """Write ``model.safetensors`` and ``model.json`` into ``out_dir`` (each atomically)."""
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
+    """Write ``model.safetensors`` and ``model.json`` into ``out_dir`` (see :func:`write_model_folder`)."""
     if len(action_names) != config.n_actions or skeleton.n_joints != config.n_joints:
         raise ConfigError("action names / skeleton do not match the model config")
+    write_model_folder(out_dir, model, config.to_dict(), skeleton, action_names, provenance, root_height)
+
+
+def write_model_folder(
+    out_dir: str | Path,
+    model: torch.nn.Module,
+    config: dict[str, Any],
+    skeleton: Skeleton,
+    action_names: list[str],
+    provenance: dict[str, Any],
+    root_height: float,
+    arch: str | None = None,
+) -> None:
+    """Write the weights, then ``model.json`` holding their checksum, each atomically.
+
+    A latent bank of earlier weights is removed: it no longer describes the model. A writer killed
+    between the two files leaves a folder whose weights fail the checksum, never a silently mixed one.
+    """
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
     tensors = {k: v.detach().to("cpu").contiguous() for k, v in model.state_dict().items()}
-    atomic_write_bytes(out / WEIGHTS_FILE, save_safetensors(tensors, metadata={"format": FORMAT}))
+    extra = {} if arch is None else {"arch": arch}
+    weights = save_safetensors(tensors, metadata={"format": FORMAT, **extra})
+    atomic_write_bytes(out / WEIGHTS_FILE, weights)
     meta = {
         "format": FORMAT,
         "format_version": FORMAT_VERSION,
-        "config": config.to_dict(),
+        **extra,
+        "config": config,
         "skeleton": {
             "names": list(skeleton.names),
             "parents": [int(p) for p in skeleton.parents],
             "offsets": [[float(v) for v in row] for row in skeleton.offsets],
         },
-        "fps": float(config.fps),
-        "window": int(config.window),
+        "fps": float(config["fps"]),
+        "window": int(config["window"]),
         "action_names": list(action_names),
         "root_height": float(root_height),
         "provenance": provenance,
+        "weights_sha256": _sha256(weights),
     }
     atomic_write_text(out / META_FILE, json.dumps(meta, indent=2) + "\n")
+    (out / BANK_FILE).unlink(missing_ok=True)
+
+
+def save_bank(model_dir: str | Path, bank: LatentBank) -> Path:
+    """Write ``bank`` into a model folder, tied to its weights; ``model.json`` records its checksum."""
+    folder = Path(model_dir)
+    meta_path = folder / META_FILE
+    meta = read_meta(meta_path)
+    weights_sha = meta.get("weights_sha256")
+    if weights_sha is None:  # a version-1 folder: record the weights' checksum now
+        weights_sha = _sha256(_read_bytes(folder / WEIGHTS_FILE, "weights"))
+    data = bank.to_bytes(weights_sha256=weights_sha)
+    atomic_write_bytes(folder / BANK_FILE, data)
+    meta |= {"format_version": FORMAT_VERSION, "weights_sha256": weights_sha, "bank_sha256": _sha256(data)}
+    atomic_write_text(meta_path, json.dumps(meta, indent=2) + "\n")
+    return folder / BANK_FILE
+
+
+def _sha256(data: bytes) -> str:
+    return hashlib.sha256(data).hexdigest()
+
+
+def _read_bytes(path: Path, what: str) -> bytes:
+    """The bytes of a model-folder file, refused over the file-size limit."""
+    try:
+        check_file_size(path, what)
+        return path.read_bytes()
+    except FileNotFoundError:
+        raise ModelFormatError(f"{path}: missing {what} file") from None
+    except OSError as exc:
+        raise ModelFormatError(f"{path}: unreadable {what}: {exc}") from exc
+
+
+def check_checksum(path: Path, data: bytes, meta: dict[str, Any], key: str) -> None:
+    """ModelFormatError unless ``data`` has the checksum ``meta[key]`` (version-1 folders have none)."""
+    expected = meta.get(key)
+    if expected is None and meta["format_version"] < 2:
+        log.warning("%s: a version-1 model folder has no checksums; its files are not verified", path)
+        return
+    if not isinstance(expected, str) or _sha256(data) != expected:
+        raise ModelFormatError(
+            f"{path}: content does not match the checksum in {META_FILE} (damaged, or a write was "
+            "interrupted); restore the folder or train it again"
+        )
 
 
 def read_meta(path: Path) -> dict[str, Any]:
@@ -106,27 +179,27 @@ def read_meta(path: Path) -> dict[str, Any]:
     if not isinstance(meta, dict) or meta.get("format") != FORMAT:
         raise ModelFormatError(f"{path}: not an ODMO Explorer model description")
     version = meta.get("format_version")
-    if not isinstance(version, int) or version < 1:
+    if isinstance(version, bool) or not isinstance(version, int) or version < 1:
         raise ModelFormatError(f"{path}: bad format_version {version!r}")
     if version > FORMAT_VERSION:
         raise ModelFormatError(
             f"{path}: format version {version} is newer than this program reads ({FORMAT_VERSION}); upgrade"
         )
-    missing = [
-        k for k in ("config", "skeleton", "action_names", "root_height", "provenance") if k not in meta
-    ]
+    missing = [k for k in _REQUIRED_KEYS if k not in meta]
     if missing:
         raise ModelFormatError(f"{path}: missing keys: {', '.join(missing)}")
+    unknown = sorted(set(meta) - _KNOWN_KEYS)
+    if unknown:
+        raise ModelFormatError(f"{path}: unknown keys: {', '.join(unknown)}")
     return meta
 
 
-def _read_weights(path: Path, model: OdmoModel) -> dict[str, torch.Tensor]:
-    """Tensors of ``path``, checked name by name and shape by shape against ``model``."""
+def read_weights(path: Path, model: torch.nn.Module, meta: dict[str, Any]) -> dict[str, torch.Tensor]:
+    """Tensors of ``path``, checked name by name and shape by shape against ``model``, then checksummed."""
+    data = _read_bytes(path, "weights")
     try:
-        tensors = load_safetensors(path.read_bytes())
-    except FileNotFoundError:
-        raise ModelFormatError(f"{path}: missing weights file") from None
-    except (OSError, SafetensorError, ValueError, RuntimeError) as exc:
+        tensors = load_safetensors(data)
+    except (SafetensorError, ValueError, RuntimeError) as exc:
         raise ModelFormatError(f"{path}: corrupt weights: {exc}") from exc
     expected = model.state_dict()
     missing = sorted(set(expected) - set(tensors))
@@ -141,7 +214,31 @@ def _read_weights(path: Path, model: OdmoModel) -> dict[str, torch.Tensor]:
                 f"{path}: tensor {name} is {tuple(tensors[name].shape)} {tensors[name].dtype}, "
                 f"expected {tuple(ref.shape)} {ref.dtype}"
             )
+    check_checksum(path, data, meta, "weights_sha256")
     return tensors
+
+
+def _read_bank(folder: Path, meta: dict[str, Any]) -> LatentBank | None:
+    """The folder's latent bank, verified against model.json, or None when the folder has none."""
+    from engine.latent.bank import LatentBank
+
+    path = folder / BANK_FILE
+    if not path.exists():
+        log.warning("%s: no latent bank; sampling from modes is unavailable", path)
+        return None
+    data = _read_bytes(path, "latent bank")
+    if meta["format_version"] >= 2 and "bank_sha256" not in meta:
+        raise ModelFormatError(
+            f"{path}: not recorded in {META_FILE} (a training run or bank build was interrupted?); "
+            "rebuild it with `odmo bank`"
+        )
+    check_checksum(path, data, meta, "bank_sha256")
+    bank = LatentBank.from_bytes(data, path)
+    if bank.weights_sha256 and bank.weights_sha256 != meta.get("weights_sha256", bank.weights_sha256):
+        raise ModelFormatError(
+            f"{path}: built from other weights than {WEIGHTS_FILE}; rebuild it with `odmo bank`"
+        )
+    return bank
 
 
 def load_model(model_dir: str | Path, device: str = "cpu", with_bank: bool = True) -> LoadedModel:
@@ -151,7 +248,10 @@ def load_model(model_dir: str | Path, device: str = "cpu", with_bank: bool = Tru
         raise ModelFormatError(f"{folder}: not a model folder")
     meta_path = folder / META_FILE
     meta = read_meta(meta_path)
-    config = OdmoConfig.from_dict(meta["config"])
+    try:
+        config = OdmoConfig.from_dict(meta["config"])
+    except ModelFormatError as exc:
+        raise ModelFormatError(f"{meta_path}: {exc}") from None
     try:
         sk = meta["skeleton"]
         skeleton = Skeleton(tuple(sk["names"]), np.array(sk["parents"]), np.array(sk["offsets"], dtype=float))
@@ -161,17 +261,9 @@ def load_model(model_dir: str | Path, device: str = "cpu", with_bank: bool = Tru
     if len(names) != config.n_actions or skeleton.n_joints != config.n_joints:
         raise ModelFormatError(f"{meta_path}: action names or skeleton disagree with the config")
     model = OdmoModel(config)
-    model.load_state_dict(_read_weights(folder / WEIGHTS_FILE, model))
+    model.load_state_dict(read_weights(folder / WEIGHTS_FILE, model, meta))
     model.to(resolve_device(device)).eval()
-    bank = None
-    if with_bank:
-        from engine.latent.bank import LatentBank
-
-        bank_path = folder / BANK_FILE
-        if bank_path.exists():
-            bank = LatentBank.load(bank_path)
-        else:
-            log.warning("%s: no latent bank; sampling from modes is unavailable", bank_path)
+    bank = _read_bank(folder, meta) if with_bank else None
     return LoadedModel(
         model=model,
         config=config,

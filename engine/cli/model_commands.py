@@ -167,7 +167,7 @@ def _cmd_train(args: argparse.Namespace) -> int:
 def _cmd_bank(args: argparse.Namespace) -> int:
     from engine.generate import encode_clips
     from engine.latent.bank import build_bank
-    from engine.modelio import BANK_FILE, load_model
+    from engine.modelio import load_model, save_bank
 
     loaded = load_model(args.model, with_bank=False)
     dataset = _dataset(args)
@@ -195,9 +195,9 @@ def _cmd_bank(args: argparse.Namespace) -> int:
         )
     finally:
         progress.close()
-    bank.save(loaded.path / BANK_FILE)
+    path = save_bank(loaded.path, bank)
     sizes = ", ".join(f"{loaded.action_names[a]}: {m.n_modes}" for a, m in sorted(bank.modes.items()))
-    print(f"{loaded.path / BANK_FILE}: {len(codes)} codes; modes {sizes}")
+    print(f"{path}: {len(codes)} codes; modes {sizes}")
     return 0
 
 

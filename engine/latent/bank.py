@@ -6,6 +6,7 @@ import io
 import json
 import logging
 import zipfile
+import zlib
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -18,6 +19,7 @@ from engine.fileio import atomic_write_bytes
 from engine.latent.geometry import NeighbourBlend
 from engine.latent.modes import ModeModel, discover_modes
 from engine.latent.projection import Projection, make_projection
+from engine.limits import check_file_size
 
 log = logging.getLogger(__name__)
 
@@ -36,6 +38,7 @@ class LatentBank:
     meta : N dicts of extra clip information (e.g. style), never used in training.
     modes : action index -> its modes (actions without codes have none).
     projections : "pca" | "tsne" | "umap" -> a fitted map of all N codes.
+    weights_sha256 : checksum of the model weights the codes were encoded with ("" when unknown).
     """
 
     codes: np.ndarray
@@ -46,6 +49,7 @@ class LatentBank:
     meta: list[dict[str, Any]]
     modes: dict[int, ModeModel] = field(default_factory=dict)
     projections: dict[str, Projection] = field(default_factory=dict)
+    weights_sha256: str = ""
     # (action, k) -> end-location lookup, built on first use (the bank's arrays are not edited in place).
     _end_blends: dict[tuple[int, int], NeighbourBlend] = field(
         default_factory=dict, init=False, repr=False, compare=False
@@ -72,11 +76,13 @@ class LatentBank:
             self._end_blends[key] = NeighbourBlend(self.codes[idx], self.ends[idx], k)
         return self._end_blends[key](x).astype(np.float32)
 
-    def save(self, path: str | Path) -> None:
-        """Write the bank to one .npz file atomically (plain arrays only; meta as JSON strings)."""
+    def to_bytes(self, weights_sha256: str | None = None) -> bytes:
+        """The bank as .npz bytes (plain arrays only; meta as JSON strings), tied to ``weights_sha256``."""
+        built_from = self.weights_sha256 if weights_sha256 is None else weights_sha256
         arrays: dict[str, np.ndarray] = {
             "format": np.asarray(FORMAT),
             "version": np.asarray(FORMAT_VERSION, dtype=np.int64),
+            "weights_sha256": np.asarray(built_from),
             "codes": np.asarray(self.codes, dtype=np.float32),
             "actions": np.asarray(self.actions, dtype=np.int64),
             "action_names": np.asarray(self.action_names, dtype=np.str_),
@@ -92,19 +98,32 @@ class LatentBank:
             arrays.update(projection.to_arrays(f"projections/{name}/"))
         buffer = io.BytesIO()
         np.savez(buffer, **arrays)
-        atomic_write_bytes(path, buffer.getvalue())
+        return buffer.getvalue()
+
+    def save(self, path: str | Path) -> None:
+        """Write the bank to one .npz file atomically (in a model folder use ``modelio.save_bank``)."""
+        atomic_write_bytes(path, self.to_bytes())
         log.info("saved latent bank of %d codes to %s", len(self.codes), path)
 
     @classmethod
     def load(cls, path: str | Path) -> LatentBank:
         """Read a bank written by :meth:`save`; ModelFormatError for missing, corrupt or newer files."""
         try:
-            # Our own handle: np.load leaves its file open when the archive is corrupt.
-            with open(path, "rb") as handle, np.load(handle, allow_pickle=False) as npz:
-                arrays = {key: npz[key] for key in npz.files}
+            check_file_size(path, "latent bank")
+            data = Path(path).read_bytes()
         except FileNotFoundError as exc:
             raise ModelFormatError(f"{path}: latent bank not found") from exc
-        except (OSError, ValueError, EOFError, zipfile.BadZipFile, KeyError) as exc:
+        except OSError as exc:
+            raise ModelFormatError(f"{path}: not a readable latent bank ({exc})") from exc
+        return cls.from_bytes(data, path)
+
+    @classmethod
+    def from_bytes(cls, data: bytes, path: str | Path) -> LatentBank:
+        """Parse and validate the bytes of a bank file; errors name ``path``."""
+        try:
+            with np.load(io.BytesIO(data), allow_pickle=False) as npz:
+                arrays = {key: npz[key] for key in npz.files}
+        except (OSError, ValueError, EOFError, zipfile.BadZipFile, KeyError, zlib.error) as exc:
             raise ModelFormatError(f"{path}: not a readable latent bank ({exc})") from exc
         try:
             return cls._from_arrays(arrays)
@@ -112,7 +131,7 @@ class LatentBank:
             raise ModelFormatError(f"{path}: latent bank is missing {exc.args[0]!r}") from exc
         except ModelFormatError as exc:
             raise ModelFormatError(f"{path}: {exc}") from exc
-        except (TypeError, ValueError) as exc:
+        except (TypeError, ValueError, json.JSONDecodeError) as exc:
             raise ModelFormatError(f"{path}: malformed latent bank ({exc})") from exc
 
     @classmethod
@@ -139,6 +158,7 @@ class LatentBank:
                 str(n): Projection.from_arrays(f"projections/{n}/", arrays)
                 for n in arrays["projection_names"]
             },
+            weights_sha256=str(arrays["weights_sha256"]) if "weights_sha256" in arrays else "",
         )
         _validate(bank, ModelFormatError)
         return bank
@@ -160,14 +180,23 @@ def _validate(bank: LatentBank, error: type[Exception]) -> None:
         raise error(f"action indices must be in 0..{len(bank.action_names) - 1}")
     if not (np.all(np.isfinite(bank.codes)) and np.all(np.isfinite(bank.ends))):
         raise error("codes and ends must be finite")
+    dim = bank.codes.shape[1]
     for name, projection in bank.projections.items():
         if projection.embedding_ is None or projection.embedding_.shape != (n, 2):
             raise error(f"projection {name!r} does not map all {n} codes")
+        for key, values in projection.learned_arrays().items():
+            if not np.all(np.isfinite(values)):
+                raise error(f"projection {name!r}: {key} holds non-finite values")
     for action, model in bank.modes.items():
         if not 0 <= action < len(bank.action_names):
             raise error(f"modes for unknown action {action}")
         if len(model.labels) != int(np.sum(bank.actions == action)):
             raise error(f"modes of action {action} label {len(model.labels)} codes")
+        if model.means.shape[1] != dim:
+            raise error(f"modes of action {action} are {model.means.shape[1]}-d, codes {dim}-d")
+        problem = model.problem()
+        if problem is not None:
+            raise error(f"modes of action {bank.action_names[action]!r}: {problem}")
 
 
 def build_bank(

@@ -118,6 +118,24 @@ class ModeModel:
         """(M,) most probable mode of each code (M, D)."""
         return np.argmax(self.log_responsibilities(codes), axis=1).astype(np.int64)
 
+    def problem(self) -> str | None:
+        """What makes these modes unusable for sampling (non-finite or negative weights, covariances that
+        are not symmetric positive definite), or None."""
+        w = np.asarray(self.weights, dtype=np.float64)
+        if not np.all(np.isfinite(w)) or np.any(w < 0) or abs(w.sum() - 1.0) > 1e-3:
+            return f"mixture weights must be finite, non-negative and sum to 1, got {w.tolist()}"
+        for name in ("means", "conventional_mean"):
+            if not np.all(np.isfinite(getattr(self, name))) or np.abs(getattr(self, name)).max() > 1e6:
+                return f"{name} must be finite numbers of sensible size (|x| <= 1e6)"
+        pairs = (("covariances", self.covariances), ("conventional_cov", self.conventional_cov[None]))
+        for name, covs in pairs:
+            c = np.asarray(covs, dtype=np.float64)
+            if not np.all(np.isfinite(c)) or not np.allclose(c, np.swapaxes(c, 1, 2), atol=1e-6, rtol=1e-4):
+                return f"{name} must be finite and symmetric"
+            if np.abs(c).max() > 1e12 or np.any(np.linalg.eigvalsh(c)[:, 0] <= 0):
+                return f"{name} must be positive definite"
+        return None
+
     def to_arrays(self, prefix: str) -> dict[str, np.ndarray]:
         """Plain arrays (no objects) under keys starting with ``prefix``."""
         ks = sorted(self.silhouette)

@@ -130,6 +130,11 @@ class Projection:
             **{f"{prefix}{key}": value for key, value in self._state().items()},
         }
 
+    def learned_arrays(self) -> dict[str, np.ndarray]:
+        """Every fitted array by name: the codes, the embedding and the subclass's state."""
+        codes, embedding = self._fitted()
+        return {"codes": codes, "embedding": embedding, **self._state()}
+
     def _state(self) -> dict[str, np.ndarray]:
         """Learned arrays beyond codes and embedding."""
         return {}

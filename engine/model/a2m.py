@@ -18,6 +18,7 @@ import torch.nn.functional as F  # noqa: N812
 from torch import Tensor, nn
 
 from engine.errors import ConfigError, ModelFormatError
+from engine.limits import check_config
 
 A2M_LOSS_TERMS = ("recon", "kl")
 
@@ -49,6 +50,7 @@ class A2mConfig:
     arch: str = "a2m"
 
     def __post_init__(self) -> None:
+        check_config(self)
         positive = ("n_actions", "n_joints", "window", "fps", "hidden", "latent_dim", "gen_layers")
         for name in (*positive, "lr", "batch_size", "epoch_size", "grad_clip"):
             if not getattr(self, name) > 0:

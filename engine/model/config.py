@@ -7,6 +7,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from engine.errors import ConfigError, ModelFormatError
+from engine.limits import check_config
 
 #: Fields added after the first models were saved, with the value that reproduces those models.
 _BEFORE_SWITCHES = {"exact_end": False, "root_relative_poses": False}
@@ -62,6 +63,7 @@ class OdmoConfig:
     arch: str = "odmo"
 
     def __post_init__(self) -> None:
+        check_config(self)
         positive = ("n_actions", "n_joints", "window", "fps", "latent_dim", "enc_hidden", "enc_fc")
         positive += ("traj_hidden", "motion_hidden", "prior_sigma2", "lr", "batch_size", "epoch_size")
         for name in positive:

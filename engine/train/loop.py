@@ -25,7 +25,7 @@ from engine.latent.bank import LatentBank, build_bank
 from engine.model.config import OdmoConfig
 from engine.model.losses import LOSS_TERMS, odmo_losses
 from engine.model.odmo import OdmoModel
-from engine.modelio import BANK_FILE, resolve_device, save_model
+from engine.modelio import resolve_device, save_bank, save_model
 from engine.motion.motion import Motion
 from engine.train.checkpoint import checkpoint_path, load_checkpoint, save_checkpoint
 from engine.train.pairs import PairSampler, split_clips
@@ -369,7 +369,7 @@ def train(
         progress=bank_progress,
         cancel=cancel,
     )
-    bank.save(out / BANK_FILE)
+    save_bank(out, bank)
     return TrainResult(
         model_dir=out,
         epochs=config.epochs,
