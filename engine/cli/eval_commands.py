@@ -30,6 +30,21 @@ TABLE_ORDER = (
     "end_error_out_m",
     "end_error_out_pct",
     "control_accuracy_out",
+    "bone_length_cv",
+    "foot_skate_m_s",
+    "floor_penetration",
+    "floor_depth_m",
+    "float_share",
+)
+# Columns of the per-action table: (metric, heading).
+PER_ACTION_COLUMNS = (
+    ("hand_speed_m_s", "hand speed"),
+    ("hand_amplitude_m", "hand amp."),
+    ("foot_speed_m_s", "foot speed"),
+    ("foot_amplitude_m", "foot amp."),
+    ("jerk_m_s3", "jerk"),
+    ("bone_length_cv", "bone cv"),
+    ("foot_skate_m_s", "skate"),
 )
 
 
@@ -101,6 +116,28 @@ def format_table(result: dict[str, Any]) -> str:
     return "\n".join(lines)
 
 
+def format_per_action(result: dict[str, Any]) -> str:
+    """Per action, each physical figure as generated / real (means)."""
+    per_action = result.get("per_action") or {}
+    columns = [(m, h) for m, h in PER_ACTION_COLUMNS if any(m in v["real"] for v in per_action.values())]
+    if not columns:
+        return ""
+    width = max(len(a) for a in per_action)
+
+    def cell(row: dict[str, Any], metric: str) -> str:
+        gen, real = row["generated"].get(metric), row["real"].get(metric)
+        if gen is None or real is None:
+            return "-"
+        return f"{gen['mean']:.3g} / {real['mean']:.3g}"
+
+    lines = [f"{'action':<{width}}  " + "  ".join(f"{h:>17}" for _, h in columns)]
+    lines += [
+        f"{a:<{width}}  " + "  ".join(f"{cell(row, m):>17}" for m, _ in columns)
+        for a, row in per_action.items()
+    ]
+    return "per action, generated / real (m/s, m, m/s³):\n" + "\n".join(lines)
+
+
 def _cmd_eval(args: argparse.Namespace) -> int:
     from engine.fileio import atomic_write_text
     from engine.metrics.classifier import META_FILE, load_classifier
@@ -128,6 +165,9 @@ def _cmd_eval(args: argparse.Namespace) -> int:
             progress=progress,
         )
     print(format_table(result))
+    per_action = format_per_action(result)
+    if per_action:
+        print(per_action)
     if classifier is None:
         print(
             "(no classifier: accuracy, FID, diversity and multimodality left out; see odmo train-classifier)"

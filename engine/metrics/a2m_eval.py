@@ -18,10 +18,9 @@ import torch
 from engine.a2m_io import LoadedA2m, generate_a2m
 from engine.errors import ConfigError
 from engine.metrics.classifier import Classifier
-from engine.metrics.evaluate import check_compatible, evaluate_sets
-from engine.metrics.features import canonical_windows
+from engine.metrics.evaluate import check_compatible, evaluate_sets, report
+from engine.metrics.features import canonical_windows, root_heights
 from engine.metrics.reconstruction import mpjpe
-from engine.metrics.stats import summarize
 from engine.motion.motion import Motion
 from engine.train.windows import WindowBatch, crop_windows, prepare_clips
 
@@ -52,7 +51,7 @@ def a2m_reconstruction_error(loaded: LoadedA2m, batch: WindowBatch) -> float:
 
 def _generated_windows(
     loaded: LoadedA2m, actions: np.ndarray, n: int, rng: np.random.Generator
-) -> tuple[np.ndarray, np.ndarray]:
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Canonical windows (N, T, J, 3) and labels (N,) of ``n`` sampled motions per action.
 
     One draw of ``rng`` seeds the torch generator the sampling runs on.
@@ -64,7 +63,8 @@ def _generated_windows(
         joints = generate_a2m(loaded, int(a), n, generator)
         motions.extend(Motion(j, loaded.fps, loaded.skeleton) for j in joints)
         labels.extend([int(a)] * n)
-    return canonical_windows(motions, loaded.window), np.array(labels)
+    heights = root_heights(motions) + np.float32(loaded.root_height)  # the model's origin is frame 0's root
+    return canonical_windows(motions, loaded.window), np.array(labels), heights
 
 
 def evaluate_a2m(
@@ -125,4 +125,4 @@ def evaluate_a2m(
         "not_applicable": list(NOT_APPLICABLE),
         "ci": "95% interval 1.96·s/√n over repeats",
     }
-    return {"real": summarize(real_runs), "generated": summarize(gen_runs), "meta": meta}
+    return report(real_runs, gen_runs) | {"meta": meta}

@@ -15,9 +15,10 @@ from engine.metrics.accuracy import recognition_accuracy
 from engine.metrics.apd import apd, n_apd
 from engine.metrics.classifier import Classifier
 from engine.metrics.diversity import diversity, multimodality
-from engine.metrics.features import canonical_windows
+from engine.metrics.features import canonical_windows, root_heights
 from engine.metrics.fid import fid
 from engine.metrics.modes import mode_homogeneity, mode_purity
+from engine.metrics.physics import physics_metrics
 from engine.metrics.reconstruction import mpjpe
 from engine.metrics.stats import summarize
 from engine.metrics.trajectory import control_targets, end_point_errors, root_travel
@@ -31,8 +32,12 @@ log = logging.getLogger(__name__)
 EVAL_STRATEGIES = ("mode_preserving", "conventional")
 CONTROL_POINTS = 10  # end points per code (paper: two real ends and eight between them)
 
-GenerateFn = Callable[[np.ndarray, int, np.random.Generator], tuple[np.ndarray, np.ndarray]]
-"""``(actions (A,), n per action, rng) -> (canonical windows (N, T, J, 3), labels (N,))``."""
+GenerateFn = Callable[
+    [np.ndarray, int, np.random.Generator], tuple[np.ndarray, np.ndarray, np.ndarray | None]
+]
+"""``(actions (A,), n per action, rng) -> (canonical windows (N, T, J, 3), labels (N,), frame-0 root
+heights (N,) above the floor or None)``; with heights the physical metrics are measured too."""
+PER_ACTION = "@"  # per-action metrics travel in the rows as "metric@action"
 ExtraFn = Callable[[np.random.Generator], dict[str, float]]
 """``rng -> metrics`` added to a repeat's generated row, drawn after the set metrics."""
 
@@ -125,6 +130,27 @@ def _set_metrics(
     groups = _by_action(windows, labels)
     out["apd"] = float(np.mean([apd(g) for g in groups.values()]))
     out["n_apd"] = n_apd(groups, reference["groups"])
+    return out
+
+
+def _physics(
+    windows: np.ndarray,
+    mask: np.ndarray | None,
+    labels: np.ndarray,
+    heights: np.ndarray,
+    prepared: PreparedClips,
+) -> dict[str, float]:
+    """Physical metrics of canonical windows lifted to their root heights (floor y = 0), over the whole
+    set and per action (``metric@action``); padded frames are left out."""
+    lifted = np.array(windows, dtype=np.float32, copy=True)
+    lifted[..., 1] += np.asarray(heights, np.float32)[:, None, None]
+    lengths = np.full(len(lifted), lifted.shape[1]) if mask is None else np.asarray(mask, bool).sum(axis=1)
+    clips = [w[: max(int(n), 1)] for w, n in zip(lifted, lengths, strict=True)]
+    out = physics_metrics(clips, prepared.skeleton, prepared.fps)
+    for a in np.unique(labels):
+        subset = [c for c, label in zip(clips, labels, strict=True) if label == a]
+        row = physics_metrics(subset, prepared.skeleton, prepared.fps)
+        out.update({f"{k}{PER_ACTION}{prepared.action_names[int(a)]}": v for k, v in row.items()})
     return out
 
 
@@ -307,7 +333,21 @@ def evaluate(
         "fps": loaded.fps,
         "ci": "95% interval 1.96·s/√n over repeats",
     }
-    return {"real": summarize(real_runs), "generated": summarize(gen_runs), "meta": meta}
+    return report(real_runs, gen_runs) | {"meta": meta}
+
+
+def report(real_runs: list[dict[str, float]], gen_runs: list[dict[str, float]]) -> dict[str, Any]:
+    """``{"real", "generated"}`` summaries of the set-wide metrics and ``{"per_action": {ACTION: {"real",
+    "generated"}}}`` of the per-action ones (``metric@action`` keys of the rows)."""
+    out: dict[str, Any] = {"per_action": {}}
+    for side, runs in (("real", real_runs), ("generated", gen_runs)):
+        plain = [{k: v for k, v in row.items() if PER_ACTION not in k} for row in runs]
+        out[side] = summarize(plain)
+        for metric, stats in summarize(runs).items():
+            if PER_ACTION in metric:
+                name, action = metric.split(PER_ACTION, 1)
+                out["per_action"].setdefault(action, {"real": {}, "generated": {}})[side][name] = stats
+    return out
 
 
 def evaluate_sets(
@@ -327,7 +367,8 @@ def evaluate_sets(
 
     Repeat r uses ``numpy.random.default_rng([seed, r])`` for, in this order: real sets A and B
     (``n_per_action`` windows per action each), A's set metrics, ``generate(actions, n_per_action, rng)``,
-    the generated set's metrics, then ``extra(rng)``, whose metrics join the generated row. Any model
+    the generated set's metrics, then ``extra(rng)``, whose metrics join the generated row. Both rows also
+    get the physical metrics (``engine.metrics.physics``) when ``generate`` gives root heights. Any model
     evaluated with the same clips, classifier and seed thus gets the same real row and the same set A.
     """
     labels = prepared.actions
@@ -342,9 +383,14 @@ def evaluate_sets(
         real_runs.append(
             _set_metrics(sets[0].joints, sets[0].mask, sets[0].actions, ref, classifier, names, rng)
         )
+        real_runs[-1].update(
+            _physics(sets[0].joints, sets[0].mask, sets[0].actions, sets[0].origin[:, 1], prepared)
+        )
         ref = _reference(sets[0], classifier)
-        gen, gen_labels = generate(actions, n_per_action, rng)
+        gen, gen_labels, gen_heights = generate(actions, n_per_action, rng)
         gen_metrics = _set_metrics(gen, None, gen_labels, ref, classifier, names, rng)
+        if gen_heights is not None:
+            gen_metrics.update(_physics(gen, None, gen_labels, gen_heights, prepared))
         if extra is not None:
             gen_metrics.update(extra(rng))
         gen_runs.append(gen_metrics)
@@ -364,9 +410,10 @@ def _reference(batch: WindowBatch, classifier: Classifier | None) -> dict[str, A
 def _generate(
     loaded: LoadedModel, actions: np.ndarray, n: int, strategy: str, rng: np.random.Generator
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Canonical windows (N, T, J, 3) and labels (N,) of ``n`` generated motions per action."""
+    """Canonical windows (N, T, J, 3), labels (N,) and frame-0 root heights (N,) of ``n`` generated
+    motions per action."""
     motions, labels = [], []
     for a in actions:
         motions.extend(s.motion for s in sample(loaded, int(a), n, rng, strategy=strategy))
         labels.extend([int(a)] * n)
-    return canonical_windows(motions, loaded.window), np.array(labels)
+    return canonical_windows(motions, loaded.window), np.array(labels), root_heights(motions)

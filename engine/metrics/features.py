@@ -22,3 +22,8 @@ def canonical_windows(motions: Sequence[Motion], window: int) -> np.ndarray:
     if not out:
         raise ConfigError("no motions given")
     return np.stack(out)
+
+
+def root_heights(motions: Sequence[Motion]) -> np.ndarray:
+    """(N,) float32 frame-0 root height of each motion (what ``canonical_windows`` subtracts from y)."""
+    return np.array([m.joints[0, m.skeleton.root, 1] for m in motions], dtype=np.float32)

@@ -16,6 +16,7 @@ from engine.errors import ConfigError, ModelFormatError
 from engine.metrics.a2m_eval import NOT_APPLICABLE, evaluate_a2m
 from engine.metrics.classifier import Classifier, train_classifier
 from engine.metrics.evaluate import evaluate
+from engine.metrics.physics import physics_metrics
 from engine.model.a2m import A2mConfig, A2mModel
 from engine.modelio import load_model
 from engine.motion.motion import Motion
@@ -181,7 +182,8 @@ def test_evaluation_shares_the_real_sets_with_odmo(
     odmo = evaluate(load_model(tiny_model_dir), clips, classifier, repeats=2, n_per_action=6, seed=4)
     assert a2m["real"] == odmo["real"]
     expected = {"accuracy", "fid", "diversity", "multimodality", "apd", "n_apd", "reconstruction_error_m"}
-    assert set(a2m["generated"]) == expected
+    assert set(a2m["generated"]) == expected | set(physics_metrics([clips[0].joints], clips[0].skeleton, 20))
+    assert set(a2m["per_action"]) == {c.action for c in clips}
     assert all(np.isfinite(v["mean"]) for v in a2m["generated"].values())
     assert set(NOT_APPLICABLE) >= {"mode_homogeneity", "style_nmi", "end_error_m"}
     assert a2m["meta"]["not_applicable"] == list(NOT_APPLICABLE)

@@ -12,8 +12,7 @@ import pytest
 import engine.cli
 from engine.errors import ConfigError
 from engine.metrics.classifier import Classifier, train_classifier
-from engine.metrics.evaluate import evaluate, evaluate_sets
-from engine.metrics.stats import summarize
+from engine.metrics.evaluate import evaluate, evaluate_sets, report
 from engine.modelio import load_model
 from engine.motion.motion import Motion
 from engine.train.windows import crop_windows, prepare_clips
@@ -23,6 +22,8 @@ REAL_KEYS = {"accuracy", "fid", "diversity", "multimodality", "apd", "n_apd"}
 MODEL_KEYS = {"mode_homogeneity", "style_nmi", "style_ari", "reconstruction_error_m"}
 CONTROL_KEYS = {"end_error_m", "end_error_pct", "control_accuracy"}
 CONTROL_KEYS |= {"end_error_out_m", "end_error_out_pct", "control_accuracy_out"}
+PHYSICS_KEYS = {"bone_length_cv", "foot_skate_m_s", "floor_penetration", "floor_depth_m", "float_share"}
+PHYSICS_KEYS |= {"hand_speed_m_s", "hand_amplitude_m", "foot_speed_m_s", "foot_amplitude_m", "jerk_m_s3"}
 
 
 @pytest.fixture(scope="module")
@@ -37,8 +38,19 @@ def test_evaluate_returns_every_metric_finite(
 ) -> None:
     loaded = load_model(tiny_model_dir)
     result = evaluate(loaded, procedural_clips, classifier, repeats=2, n_per_action=10, seed=3)
-    assert set(result["real"]) == REAL_KEYS
-    assert set(result["generated"]) == REAL_KEYS | MODEL_KEYS | CONTROL_KEYS
+    assert set(result["real"]) == REAL_KEYS | PHYSICS_KEYS
+    assert set(result["generated"]) == REAL_KEYS | MODEL_KEYS | CONTROL_KEYS | PHYSICS_KEYS
+    # the procedural clips have rigid bones; walks and waves keep their feet on the floor (squats sink)
+    assert result["real"]["bone_length_cv"]["mean"] < 1e-4
+    assert set(result["per_action"]) == set(PROCEDURAL_ACTIONS)
+    for action in ("walk", "wave"):
+        assert result["per_action"][action]["real"]["floor_penetration"]["mean"] == 0.0
+        assert result["per_action"][action]["real"]["float_share"]["mean"] == 0.0
+    assert result["per_action"]["jump"]["real"]["floor_penetration"]["mean"] > 0.0
+    wave = result["per_action"]["wave"]["real"]
+    assert (
+        wave["hand_speed_m_s"]["mean"] > result["per_action"]["jump"]["real"]["foot_speed_m_s"]["mean"] / 10
+    )
     for column in ("real", "generated"):
         for name, cell in result[column].items():
             assert math.isfinite(cell["mean"]) and math.isfinite(cell["ci95"]) and cell["ci95"] >= 0, name
@@ -64,11 +76,11 @@ def test_evaluate_sets_shares_the_real_row_and_runs_extra_last(
     prepared = prepare_clips(procedural_clips, names, loaded.fps, loaded.window)
     calls: list[str] = []
 
-    def generate(actions: np.ndarray, n: int, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+    def generate(actions: np.ndarray, n: int, rng: np.random.Generator) -> tuple[np.ndarray, ...]:
         calls.append("generate")
         idx = np.concatenate([np.flatnonzero(prepared.actions == a)[:n] for a in actions])
         batch = crop_windows(prepared, idx, rng)
-        return np.asarray(batch.joints, np.float32), np.asarray(batch.actions)
+        return np.asarray(batch.joints, np.float32), np.asarray(batch.actions), batch.origin[:, 1]
 
     def extra(rng: np.random.Generator) -> dict[str, float]:
         calls.append("extra")
@@ -78,11 +90,17 @@ def test_evaluate_sets_shares_the_real_row_and_runs_extra_last(
         prepared, None, generate, names=names, repeats=2, n_per_action=6, seed=5, extra=extra
     )
     assert calls == ["generate", "extra"] * 2
+    # the generated windows here are real windows: their physical metrics equal a real set's
+    assert all(row["bone_length_cv"] < 1e-3 for row in gen)
     assert len(real) == len(gen) == 2 and all("draw" in row and "apd" in row for row in gen)
     again, _ = evaluate_sets(prepared, None, generate, names=names, repeats=2, n_per_action=6, seed=5)
     assert again == real  # the real row does not depend on what is generated or added
     odmo = evaluate(loaded, procedural_clips, None, repeats=2, n_per_action=6, seed=5)
-    assert odmo["real"] == summarize(real)
+    assert odmo["real"] == report(real, gen)["real"]
+    assert "bone_length_cv" in odmo["real"] and "foot_skate_m_s" in odmo["generated"]
+    per_action = odmo["per_action"]
+    assert set(per_action) == set(names)
+    assert all("hand_speed_m_s" in per_action[a]["real"] for a in names)
 
 
 def test_mismatched_actions_or_skeleton_fail(tiny_model_dir: Path, procedural_clips: list[Motion]) -> None:
@@ -138,7 +156,8 @@ def test_cli_train_classifier_and_eval(
     table = capsys.readouterr().out
     assert "fid" in table and "style_nmi" in table
     result = json.loads(out.read_text())
-    assert set(result) == {"real", "generated", "meta"}
+    assert set(result) == {"real", "generated", "per_action", "meta"}
+    assert "hand speed" in table and "walk" in table
     assert set(result["generated"]["accuracy"]) == {"mean", "ci95"}
     assert result["generated"].keys() >= REAL_KEYS | MODEL_KEYS | CONTROL_KEYS
 

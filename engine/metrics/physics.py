@@ -1,0 +1,116 @@
+"""Physical plausibility of joint positions: bone lengths, foot skate, floor contact, limb motion, jerk.
+
+Every function takes clips as (T, J, 3) arrays in metres, y up, the floor at y = 0.
+
+Contact rule of ``foot_skate``: a foot joint is planted in a frame when it lies within ``PLANTED_TOL``
+(3 cm) of the clip's lowest foot height (the lowest any foot joint reaches in that clip), in that frame
+and the next; no speed threshold, since a speed threshold would hide the sliding it measures.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+from engine.motion.contact import foot_joints, hand_joints
+from engine.motion.skeleton import Skeleton
+
+PLANTED_TOL = 0.03
+PENETRATION_TOL = 0.02
+FLOAT_HEIGHT = 0.10
+FLOAT_SECONDS = 0.5
+
+
+def bone_length_cv(joints: np.ndarray, parents: np.ndarray) -> float:
+    """Worst bone's std/mean length over the frames of one clip (0 for fixed bones)."""
+    pos = np.asarray(joints, dtype=np.float64)
+    kids = np.flatnonzero(np.asarray(parents) >= 0)
+    lengths = np.linalg.norm(pos[:, kids] - pos[:, np.asarray(parents)[kids]], axis=-1)
+    mean = lengths.mean(axis=0)
+    cv = lengths.std(axis=0) / np.maximum(mean, 1e-9)
+    return float(cv[mean > 1e-6].max(initial=0.0))
+
+
+def median_bone_length_cv(clips: Sequence[np.ndarray], parents: np.ndarray) -> float:
+    """Median over clips of ``bone_length_cv``."""
+    return float(np.median([bone_length_cv(c, parents) for c in clips]))
+
+
+def _planted_speeds(joints: np.ndarray, feet: Sequence[int], fps: float) -> np.ndarray:
+    """Horizontal speeds (m/s) of foot joints over the frame steps where they are planted."""
+    pos = np.asarray(joints, dtype=np.float64)[:, list(feet)]
+    height = pos[..., 1]
+    planted = height <= height.min() + PLANTED_TOL
+    both = planted[1:] & planted[:-1]
+    speed = np.linalg.norm(np.diff(pos[..., [0, 2]], axis=0), axis=-1) * fps
+    return speed[both]
+
+
+def foot_skate(clips: Sequence[np.ndarray], feet: Sequence[int], fps: float) -> float:
+    """Mean horizontal speed (m/s) of planted foot joints over every planted frame step of ``clips``."""
+    speeds = np.concatenate([_planted_speeds(c, feet, fps) for c in clips] or [np.zeros(0)])
+    return float(speeds.mean()) if speeds.size else float("nan")
+
+
+def floor_penetration(clips: Sequence[np.ndarray], feet: Sequence[int]) -> tuple[float, float]:
+    """Share of frames whose lowest foot joint is more than 2 cm under the floor, and the deepest
+    point's depth under the floor (m, 0 when nothing is below it)."""
+    lowest = np.concatenate([np.asarray(c)[:, list(feet), 1].min(axis=1) for c in clips])
+    return float(np.mean(lowest < -PENETRATION_TOL)), float(max(0.0, -lowest.min()))
+
+
+def floats(joints: np.ndarray, feet: Sequence[int], fps: float) -> bool:
+    """Whether every foot joint stays more than 10 cm above the floor for 0.5 s or more in a row."""
+    up = np.asarray(joints)[:, list(feet), 1].min(axis=1) > FLOAT_HEIGHT
+    need = max(1, int(np.ceil(FLOAT_SECONDS * fps - 1e-9)))
+    run = 0
+    for flag in up:
+        run = run + 1 if flag else 0
+        if run >= need:
+            return True
+    return False
+
+
+def float_share(clips: Sequence[np.ndarray], feet: Sequence[int], fps: float) -> float:
+    """Share of clips in which the feet float (see ``floats``)."""
+    return float(np.mean([floats(c, feet, fps) for c in clips]))
+
+
+def limb_speed(joints: np.ndarray, limbs: Sequence[int], fps: float) -> float:
+    """Mean speed (m/s) of joints ``limbs`` over the frames of one clip."""
+    pos = np.asarray(joints, dtype=np.float64)[:, list(limbs)]
+    return float(np.linalg.norm(np.diff(pos, axis=0), axis=-1).mean() * fps)
+
+
+def oscillation_amplitude(joints: np.ndarray, limbs: Sequence[int], root: int) -> float:
+    """RMS distance (m) of joints ``limbs`` from their mean position relative to the root, in one clip."""
+    pos = np.asarray(joints, dtype=np.float64)
+    local = pos[:, list(limbs)] - pos[:, root : root + 1]
+    return float(np.sqrt(np.square(local - local.mean(axis=0)).sum(axis=-1).mean()))
+
+
+def mean_jerk(joints: np.ndarray, fps: float) -> float:
+    """Mean norm (m/s³) of the third time difference of every joint in one clip."""
+    pos = np.asarray(joints, dtype=np.float64)
+    if len(pos) < 4:
+        return float("nan")
+    return float(np.linalg.norm(np.diff(pos, n=3, axis=0), axis=-1).mean() * fps**3)
+
+
+def physics_metrics(clips: Sequence[np.ndarray], skeleton: Skeleton, fps: float) -> dict[str, float]:
+    """Every plausibility figure of a set of clips (feet and hands found by name; left out without)."""
+    feet, hands, root = foot_joints(skeleton), hand_joints(skeleton), skeleton.root
+    out = {"bone_length_cv": median_bone_length_cv(clips, skeleton.parents)}
+    if feet:
+        out["foot_skate_m_s"] = foot_skate(clips, feet, fps)
+        out["floor_penetration"], out["floor_depth_m"] = floor_penetration(clips, feet)
+        out["float_share"] = float_share(clips, feet, fps)
+    for name, limbs in (("hand", hands), ("foot", feet)):
+        if limbs:
+            out[f"{name}_speed_m_s"] = float(np.mean([limb_speed(c, limbs, fps) for c in clips]))
+            out[f"{name}_amplitude_m"] = float(
+                np.mean([oscillation_amplitude(c, limbs, root) for c in clips])
+            )
+    out["jerk_m_s3"] = float(np.nanmean([mean_jerk(c, fps) for c in clips]))
+    return out

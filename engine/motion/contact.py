@@ -1,0 +1,85 @@
+"""Feet and hands of a skeleton found by name, and foot-contact labels of joint positions.
+
+Contact rule (labels for training and for the decode-time clean-up): a foot joint is planted in a frame
+when its height lies within ``height_tol`` (3 cm) of its resting height (the lowest height that joint
+reaches in the data, floor at y = 0) and its speed is under ``speed_tol`` (0.5 m/s).
+"""
+
+from __future__ import annotations
+
+import re
+
+import numpy as np
+
+from engine.motion.skeleton import Skeleton
+
+_FOOT = re.compile(r"foot|toe|ankle", re.IGNORECASE)
+_HAND = re.compile(r"hand|wrist", re.IGNORECASE)
+HEIGHT_TOL = 0.03
+SPEED_TOL = 0.5
+
+
+def foot_joints(skeleton: Skeleton) -> list[int]:
+    """Indices of the joints whose name says foot, toe or ankle (in skeleton order)."""
+    return [j for j, name in enumerate(skeleton.names) if _FOOT.search(name)]
+
+
+def hand_joints(skeleton: Skeleton) -> list[int]:
+    """Indices of the hand joints: named hand or wrist, the top-most of each chain (not the fingers)."""
+    named = [j for j, name in enumerate(skeleton.names) if _HAND.search(name)]
+    return [j for j in named if int(skeleton.parents[j]) not in named]
+
+
+def leg_chains(skeleton: Skeleton) -> list[tuple[int, int, int, list[int]]]:
+    """Per leg: (hip, knee, ankle, foot joints below the ankle) for two-bone IK.
+
+    The ankle is the top-most foot joint of a chain; knee and hip are its parent and grandparent. Only
+    chains whose hip and knee each have one child are returned (moving the knee then bends no other bone).
+    """
+    feet = foot_joints(skeleton)
+    parents = skeleton.parents
+    chains = []
+    for j in feet:
+        if int(parents[j]) in feet:
+            continue
+        knee = int(parents[j])
+        hip = int(parents[knee]) if knee >= 0 else -1
+        if hip < 0 or len(skeleton.children(hip)) != 1 or len(skeleton.children(knee)) != 1:
+            continue
+        below = [k for k in feet if k != j and _descends(parents, k, j)]
+        chains.append((hip, knee, j, below))
+    return chains
+
+
+def _descends(parents: np.ndarray, k: int, ancestor: int) -> bool:
+    """Whether joint ``k`` lies below ``ancestor`` in the tree."""
+    p = int(parents[k])
+    while p >= 0:
+        if p == ancestor:
+            return True
+        p = int(parents[p])
+    return False
+
+
+def resting_heights(clips: list[np.ndarray], joints: list[int]) -> np.ndarray:
+    """(F,) lowest height each of ``joints`` reaches over ``clips`` of (T, J, 3) positions (floor y = 0)."""
+    lows = np.stack([np.asarray(c)[:, joints, 1].min(axis=0) for c in clips])
+    return np.median(lows, axis=0).astype(np.float32)
+
+
+def contact_labels(
+    joints: np.ndarray,
+    fps: float,
+    feet: list[int],
+    rest: np.ndarray,
+    height_tol: float = HEIGHT_TOL,
+    speed_tol: float = SPEED_TOL,
+) -> np.ndarray:
+    """(..., T, F) bool: foot joint f planted in frame t (height within ``height_tol`` of ``rest``, and
+    speed under ``speed_tol``) for joints (..., T, J, 3) with the floor at y = 0."""
+    pos = np.asarray(joints, dtype=np.float64)[..., feet, :]
+    low = pos[..., 1] - np.asarray(rest, dtype=np.float64) <= height_tol
+    step = np.linalg.norm(np.diff(pos, axis=-3), axis=-1) * fps
+    speed = np.concatenate([step[..., :1, :], step], axis=-2)
+    speed = np.minimum(speed, np.concatenate([step, step[..., -1:, :]], axis=-2))
+    return low & (speed < speed_tol)
