@@ -31,6 +31,7 @@ from explorer.map_layers import (
     tooltips,
 )
 from explorer.preview import BankPreview, read_preview
+from explorer.scene import build_scene
 from explorer.state import AppState, Decoded, ExtraPoints
 from explorer.workers import Cancel, LatestRunner, Progress, TaskRunner
 
@@ -46,7 +47,6 @@ log = logging.getLogger(__name__)
 MAX_PLAYED = 12  # motions played at once from a selection
 VARIATIONS = 8
 LOCAL_MODE_SAMPLES = 6
-GHOSTS = 4  # faint poses along a single motion (time-lapse trail)
 LIVE_INTERVAL_MS = (
     150  # during a drag: marker, root path, ghosts, canvas, timeline, status at most this often
 )
@@ -132,7 +132,10 @@ class Controller(QObject):
         w.variations_action.triggered.connect(self.sample_variations)
         w.fit_mode_action.triggered.connect(self.fit_local_mode)
         w.clear_selection_action.triggered.connect(self.clear_selection)
-        w.reset_camera_action.triggered.connect(lambda: w.viewport.reset_camera())
+        w.reset_camera_action.triggered.connect(self.reset_camera)
+        w.follow_camera_action.toggled.connect(self._follow_camera)
+        w.labels_action.toggled.connect(lambda _on: self._show_motions(self.state.shown))
+        w.ghosts_spin.valueChanged.connect(lambda _n: self._show_details(self.state.shown, restart=False))
         w.cancel_button.clicked.connect(self.tasks.cancel_all)
 
         self.decoder.finished.connect(self._decoded)
@@ -495,7 +498,7 @@ class Controller(QObject):
             return
         bank = self.bank
         action = bank.action_names[int(bank.actions[index])]
-        self.window.statusBar().showMessage(f"#{index}  {bank.sources[index]}  ·  {action}", 4000)
+        self.window.show_hover(f"#{index}  {bank.sources[index]}  ·  {action}")
 
     # -- gestures ------------------------------------------------------------------------------------
 
@@ -569,7 +572,7 @@ class Controller(QObject):
             nonlocal code
             if code is None:
                 code = projection.inverse_transform(np.asarray(xy, np.float64)[None])[0].astype(np.float32)
-            e = bank.end_location(code[None], action)[0] if end is None else np.asarray(end, np.float32)
+            e = _full_end(loaded, code, action, end)
             modes = bank.modes.get(action)
             mode = None if modes is None else int(modes.predict(code[None])[0])
             motion = _decode_one(loaded, code, action, e, mode)
@@ -608,15 +611,16 @@ class Controller(QObject):
         xy = np.array([x, y])
         target = self._snap(xy)
         code_a, action, end_a = self.bank_item(start)
+        action_b = action
         if target is not None:
-            code_b, _, end_b = self.bank_item(target)
+            code_b, action_b, end_b = self.bank_item(target)
             self.state.selection = (start, target)
             what = f"#{start} → #{target}"
         else:
             code_b = self._code_at(xy)[0]
             end_b = self.bank.end_location(code_b[None], action)[0]
             what = f"#{start} → ({x:.2f}, {y:.2f})"
-        self.interpolate(code_a, code_b, action, end_a, end_b, what)
+        self.interpolate(code_a, code_b, action, end_a, end_b, what, action_b)
 
     def _snap(self, xy: np.ndarray) -> int | None:
         """Bank index of the visible point drawn within a few pixels of map position ``xy``, else None."""
@@ -637,16 +641,39 @@ class Controller(QObject):
         end_a: np.ndarray | None,
         end_b: np.ndarray | None,
         what: str,
+        action_b: int | None = None,
     ) -> None:
-        """Decode the strip of ``steps`` codes from ``code_a`` to ``code_b`` and show them."""
+        """Decode the strip of ``steps`` codes from ``code_a`` to ``code_b`` and show them.
+
+        Between two actions (``action_b`` given and different) the engine's cross-action rule is used
+        and the status bar says so: each step is decoded as the likelier of the two actions.
+        """
         loaded, steps = self.loaded, self.window.steps_spin.value()
+        across = action_b is not None and action_b != action
+        names = loaded.action_names
 
         def job() -> tuple[Decoded, ...]:
             from engine import generate
 
-            samples = generate.interpolate(loaded, code_a, code_b, action, steps, end_a=end_a, end_b=end_b)
+            if across:
+                samples = generate.interpolate_across(
+                    loaded, code_a, action, code_b, action_b, steps, end_a=end_a, end_b=end_b
+                )
+            else:
+                samples = generate.interpolate(
+                    loaded, code_a, code_b, action, steps, end_a=end_a, end_b=end_b
+                )
+            note = f"{names[action]} → {names[action_b]}: {generate.ACROSS_RULE}" if across else ""
             return tuple(
-                Decoded(s.motion, f"{what} step {k + 1}/{steps}", s.code, s.action, s.end, s.mode)
+                Decoded(
+                    s.motion,
+                    f"{what} step {k + 1}/{steps} {names[s.action]}",
+                    s.code,
+                    s.action,
+                    s.end,
+                    s.mode,
+                    note=note,
+                )
                 for k, s in enumerate(samples)
             )
 
@@ -796,9 +823,8 @@ class Controller(QObject):
         current = next((d for d in self.state.shown if d.code is not None), None)
         if current is None:
             return
-        self._decode_code(
-            current.code, current.action, f"{current.label} · end ({x:.2f}, {z:.2f})", np.array([x, z])
-        )
+        label = current.label.split(" · end (")[0]
+        self._decode_code(current.code, current.action, f"{label} · end ({x:.2f}, {z:.2f})", np.array([x, z]))
 
     def follow_path(self, path: object) -> None:
         """Ask the engine for the code of the focused action whose root path follows ``path`` (K, 2)."""
@@ -832,9 +858,9 @@ class Controller(QObject):
         w = self.window
         if not shown:
             return
-        motions = [d.motion for d in shown]
-        sequence = self.state.layout == "sequence" and len(motions) > 1
-        played = [_concatenate(motions)] if sequence else motions
+        loaded = self.loaded
+        scene = build_scene(shown, self.state.layout, loaded.root_height, loaded.action_names)
+        played = scene.played
         self._played = played
         live = self._drag_from is not None
         rig = (played[0].skeleton.parents.tobytes(), len(played), self.state.layout)
@@ -843,9 +869,8 @@ class Controller(QObject):
             w.viewport.set_skeletons(played[0].skeleton.parents, len(played))
             w.viewport.set_layout("overlay" if self.state.layout == "overlay" else "side_by_side", 1.0)
         lead = w.viewport.offsets[0]  # the end marker and root path belong to the first skeleton
-        w.viewport.set_end_marker(
-            None if shown[0].end is None else np.asarray(shown[0].end, np.float64) + lead
-        )
+        w.viewport.set_end_marker(None if scene.end is None else scene.end + lead)
+        w.viewport.set_labels(scene.labels if w.labels_action.isChecked() else None)
         if live:  # keep playing from the current frame; the timeline catches up with the details
             self._set_frame(self.state.frame)
             self._live_details = True
@@ -853,7 +878,23 @@ class Controller(QObject):
         else:
             self._live_details = False
             self._show_details(shown, restart=True)
+            if shown[0].code is not None:  # the Action box and the mode panel follow what plays
+                self.state.focus_action = int(shown[0].action)
         self.shownChanged.emit()
+
+    def reset_camera(self) -> None:
+        """Aim the camera at the whole of what plays (every frame), as after a decode."""
+        played = self._played
+        if played:
+            length = max(m.n_frames for m in played)
+            self.window.viewport.frame_motion(_padded_frames(played, length))
+        else:
+            self.window.viewport.reset_camera()
+
+    def _follow_camera(self, on: bool) -> None:
+        self.window.viewport.set_follow(on)
+        if not on:
+            self.reset_camera()
 
     def _schedule_live(self) -> None:
         """Flush the throttled part of a drag's updates within ``LIVE_INTERVAL_MS`` (at most that often)."""
@@ -876,8 +917,9 @@ class Controller(QObject):
             return
         first = played[0]
         w.viewport.set_trajectory(first.joints[:, first.skeleton.root] + w.viewport.offsets[0])
-        ghosts = first.joints[np.linspace(0, first.n_frames - 1, GHOSTS).round().astype(int)]
-        w.viewport.set_ghosts(ghosts if len(played) == 1 else None)
+        count = w.ghosts_spin.value()
+        ghosts = first.joints[np.unique(np.linspace(0, first.n_frames - 1, count).round().astype(int))]
+        w.viewport.set_ghosts(ghosts if len(played) == 1 and count > 0 else None)
         w.trajectory.set_generated(_root_xz(first), None)
         length = max(m.n_frames for m in played)
         frame = 0 if restart else min(self.state.frame, length - 1)
@@ -886,6 +928,8 @@ class Controller(QObject):
             w.timeline.set_frame(0)
             if not w.viewport.follow:
                 w.viewport.frame_motion(_padded_frames(played, length))
+        else:  # during a drag: re-aim only when the new motion leaves the view
+            w.viewport.keep_in_view(_padded_frames(played, length))
         self.state.frame = frame
         self._set_frame(frame)
         if restart or not w.timeline.is_playing():
@@ -894,9 +938,10 @@ class Controller(QObject):
         more = f" (+{len(shown) - 1} more)" if len(shown) > 1 else ""
         mode = "" if head.mode is None else f" · mode {head.mode}"
         end = "" if head.end is None else " · end ({:.2f}, {:.2f}, {:.2f}) m".format(*np.ravel(head.end))
+        note = f" · {head.note}" if head.note else ""
         w.show_status(
             f"Playing {head.label}{more} · {head.motion.action}{mode}{end} · "
-            f"{first.n_frames} frames @ {first.fps:g} fps"
+            f"{first.n_frames} frames @ {first.fps:g} fps{note}"
         )
 
     def _set_frame(self, frame: int) -> None:
@@ -1003,6 +1048,17 @@ def _decode_one(
     return generate.decode(loaded, np.array(code, dtype=np.float32), action, rows, mode=mode)
 
 
+def _full_end(
+    loaded: LoadedModel, code: np.ndarray, action: int, end: np.ndarray | None
+) -> np.ndarray | None:
+    """(3,) end location for ``code``: ``end`` as given when (3,), a floor point (x, z) at the bank's
+    predicted height when (2,), the bank's prediction when None."""
+    from engine import generate
+
+    rows = generate.resolve_ends(loaded, np.asarray(code, np.float32)[None], action, end)
+    return None if rows is None else rows[0].astype(np.float32)
+
+
 def _padded_frames(motions: Sequence[Motion], length: int) -> np.ndarray:
     """(n, length, J, 3) joints of ``motions``, each padded with its last frame (for framing the view)."""
     return np.stack(
@@ -1021,9 +1077,3 @@ def _as_shown(clip: Motion, fps: float) -> Motion:
     start = shown.joints[0, shown.skeleton.root].copy()
     start[1] = 0.0
     return shown.with_joints(shown.joints - start)
-
-
-def _concatenate(motions: Sequence[Motion]) -> Motion:
-    """The motions one after the other (for playing a strip in sequence)."""
-    joints = np.concatenate([m.joints for m in motions])
-    return motions[0].with_joints(joints, meta={"sequence": [m.meta for m in motions]})

@@ -152,6 +152,12 @@ class MainWindow(QMainWindow):
         self.layout_combo.addItem("in sequence", "sequence")
         self.layout_combo.setToolTip("How several motions are shown")
         bar.addWidget(self.layout_combo)
+        bar.addWidget(QLabel(" Ghosts "))
+        self.ghosts_spin = QSpinBox()
+        self.ghosts_spin.setRange(0, 16)
+        self.ghosts_spin.setValue(4)
+        self.ghosts_spin.setToolTip("Faint poses drawn along a single motion (0: none)")
+        bar.addWidget(self.ghosts_spin)
 
     def _build_menus(self) -> None:
         file_menu = self.menuBar().addMenu("&File")
@@ -182,6 +188,11 @@ class MainWindow(QMainWindow):
             view.addAction(dock.toggleViewAction())
         view.addSeparator()
         self.reset_camera_action = view.addAction("Reset &camera")
+        self.follow_camera_action = view.addAction("&Follow the skeleton")
+        self.follow_camera_action.setCheckable(True)
+        self.labels_action = view.addAction("&Labels over skeletons")
+        self.labels_action.setCheckable(True)
+        self.labels_action.setChecked(True)
         self.reset_layout_action = view.addAction("&Reset panel layout")
         self.reset_layout_action.triggered.connect(self.reset_layout)
 
@@ -190,6 +201,9 @@ class MainWindow(QMainWindow):
         self.status_label = QLabel("No model loaded.")
         self.status_label.setTextInteractionFlags(Qt.TextSelectableByMouse)
         status.addWidget(self.status_label, 1)
+        self.hover_label = QLabel()
+        self.hover_label.setObjectName("hover_label")
+        status.addPermanentWidget(self.hover_label)
         self.progress_bar = QProgressBar()
         self.progress_bar.setMaximumWidth(220)
         self.progress_bar.setRange(0, 1000)
@@ -206,6 +220,10 @@ class MainWindow(QMainWindow):
     def show_status(self, text: str) -> None:
         """Show ``text`` (what was decoded, what is hovered) in the status bar."""
         self.status_label.setText(text)
+
+    def show_hover(self, text: str) -> None:
+        """Show what the mouse is over, beside the status text (which it does not replace)."""
+        self.hover_label.setText(text)
 
     def show_progress(self, text: str, fraction: float | None) -> None:
         """Show a running task's progress (``fraction`` None: indeterminate)."""

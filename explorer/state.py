@@ -16,7 +16,7 @@ if TYPE_CHECKING:  # engine.modelio loads torch: the state is created before the
 
 PROJECTIONS = ("pca", "tsne", "umap")
 COLOR_BY = ("action", "mode", "motion energy")
-LAYOUTS = ("side_by_side", "overlay")
+LAYOUTS = ("side_by_side", "overlay", "sequence")
 
 
 @dataclass(frozen=True, eq=False)
@@ -33,6 +33,7 @@ class Decoded:
     mode : mode index within the action, or None when unknown.
     seed : seed of the random draw that produced the code, or None.
     bank_index : index of the bank code it came from, or None.
+    note : what the user should know about how it was made ("" when nothing), shown in the status.
     """
 
     motion: Motion
@@ -43,6 +44,7 @@ class Decoded:
     mode: int | None = None
     seed: int | None = None
     bank_index: int | None = None
+    note: str = ""
 
     def metadata(self, model_path: str) -> dict[str, Any]:
         """JSON-ready provenance: model, code, action, mode, end location, seed."""

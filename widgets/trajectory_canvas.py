@@ -116,6 +116,13 @@ class TrajectoryCanvas(QWidget):
             self._generated_curve.setData(pts[:, 0], pts[:, 1])
         self._error_text.setText("" if error_m is None else f"error {error_m:.3f} m")
 
+    def generated_path(self) -> np.ndarray:
+        """(T, 2) generated root path as drawn (empty when none)."""
+        x, y = self._generated_curve.getData()
+        if x is None:
+            return np.zeros((0, 2))
+        return np.stack([np.asarray(x, float), np.asarray(y, float)], axis=1)
+
     def error_text(self) -> str:
         """The error label as shown."""
         return self._error_text.toPlainText()

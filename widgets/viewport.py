@@ -7,13 +7,25 @@ from typing import Literal
 
 import numpy as np
 import pyvista as pv
-from PySide6.QtGui import QCloseEvent
+from PySide6.QtCore import QEvent, QObject
+from PySide6.QtGui import QCloseEvent, QResizeEvent
 from PySide6.QtWidgets import QVBoxLayout, QWidget
 from pyvistaqt import QtInteractor
+from vtkmodules.vtkRenderingCore import vtkBillboardTextActor3D
 
 from widgets._colors import ACCENT, BACKGROUND, GENERATED, GHOST, GRID, palette_rgb
 
 Layout = Literal["overlay", "side_by_side"]
+VIEW_MARGIN = 0.9  # framed points stay within this fraction of the view's half-width and half-height
+LABEL_LIFT = 0.25  # metres above a skeleton's highest joint where its label is drawn
+
+
+class _NoVtkKeys(QObject):
+    """Event filter that keeps key presses from VTK's interactor style (3: stereo, w: wireframe, …)."""
+
+    def eventFilter(self, watched: QObject, event: QEvent) -> bool:  # noqa: N802
+        """Swallow key presses and releases; let everything else through."""
+        return event.type() in (QEvent.Type.KeyPress, QEvent.Type.KeyRelease)
 
 
 def _bone_cells(parents: np.ndarray, n: int) -> np.ndarray:
@@ -57,6 +69,8 @@ class SkeletonViewport(QWidget):
         layout = QVBoxLayout(self)
         layout.setContentsMargins(0, 0, 0, 0)
         layout.addWidget(self.plotter.interactor)
+        self._key_filter = _NoVtkKeys(self)
+        self.plotter.interactor.installEventFilter(self._key_filter)
 
         self.plotter.add_mesh(_floor_grid(floor_size, 0.5), color=GRID, pickable=False)
         self._parents = np.zeros(0, dtype=np.int64)
@@ -69,12 +83,17 @@ class SkeletonViewport(QWidget):
         self._actors: list[object] = []
         self._trajectory_actor: object | None = None
         self._ghost_actor: object | None = None
+        self._trajectory = np.zeros((0, 3))
+        self._ghosts = np.zeros((0, 0, 3))
         self._end_actor = self.plotter.add_mesh(
             pv.Sphere(radius=0.06, center=(0.0, 0.0, 0.0)), color=GENERATED, pickable=False
         )
         self._end_actor.SetVisibility(False)
         self._follow = False
         self._follow_anchor: np.ndarray | None = None
+        self._framed: np.ndarray | None = None  # the points the camera was last aimed at
+        self._labels: list[str] = []
+        self._label_actors: list[object] = []
         self._closed = False
         self.reset_camera()
 
@@ -107,6 +126,11 @@ class SkeletonViewport(QWidget):
                 reset_camera=False,
             ),
         ]
+        for actor in self._actors:
+            actor.SetVisibility(False)  # no stray dot at the origin before the first pose
+        for actor in self._label_actors:
+            self.plotter.remove_actor(actor, render=False)
+        self._label_actors, self._labels = [], []
         self._follow_anchor = None
         self._apply_layout()
 
@@ -117,6 +141,9 @@ class SkeletonViewport(QWidget):
             raise ValueError(f"poses must have shape {self._poses.shape} (call set_skeletons first)")
         self._poses = poses
         self._mesh.points[:] = (poses + self._offsets[:, None, :]).reshape(-1, 3)
+        for actor in self._actors:
+            actor.SetVisibility(True)
+        self._place_labels()
         if self._follow:
             self._follow_root()
         self._schedule_render()
@@ -142,7 +169,9 @@ class SkeletonViewport(QWidget):
         if self._layout == "side_by_side":
             self._offsets[:, 0] = (np.arange(self._n) - (self._n - 1) / 2) * self._spacing
         if self._mesh is not None:
-            self.set_poses(self._poses)
+            self._mesh.points[:] = (self._poses + self._offsets[:, None, :]).reshape(-1, 3)
+            self._place_labels()
+            self._schedule_render()
 
     @property
     def offsets(self) -> np.ndarray:
@@ -163,8 +192,10 @@ class SkeletonViewport(QWidget):
         if self._trajectory_actor is not None:
             self.plotter.remove_actor(self._trajectory_actor, render=False)
             self._trajectory_actor = None
+        self._trajectory = np.zeros((0, 3))
         if polyline is not None and len(polyline) >= 2:
             pts = np.asarray(polyline, dtype=np.float32).reshape(-1, 3)
+            self._trajectory = pts
             self._trajectory_actor = self.plotter.add_mesh(
                 pv.lines_from_points(pts), color=ACCENT, line_width=3, pickable=False, reset_camera=False
             )
@@ -184,12 +215,14 @@ class SkeletonViewport(QWidget):
         if self._ghost_actor is not None:
             self.plotter.remove_actor(self._ghost_actor, render=False)
             self._ghost_actor = None
+        self._ghosts = np.zeros((0, len(self._parents), 3))
         if frames is not None and len(frames):
             frames = np.asarray(frames, dtype=np.float32)
             if frames.ndim != 3 or frames.shape[1:] != (len(self._parents), 3):
                 raise ValueError(
                     f"ghost frames must have shape (G, {len(self._parents)}, 3), got {frames.shape}"
                 )
+            self._ghosts = frames
             self._ghost_actor = self.plotter.add_mesh(
                 _stick_figures(self._parents, frames),
                 color=GHOST,
@@ -198,6 +231,20 @@ class SkeletonViewport(QWidget):
                 reset_camera=False,
             )
         self._schedule_render()
+
+    def trajectory_points(self) -> np.ndarray:
+        """(T, 3) root path as drawn (empty when none)."""
+        return self._trajectory.copy()
+
+    def ghost_frames(self) -> np.ndarray:
+        """(G, J, 3) ghost poses as drawn (G = 0 when none)."""
+        return self._ghosts.copy()
+
+    def end_marker(self) -> np.ndarray | None:
+        """(3,) position of the end marker, or None when it is hidden."""
+        if not self._end_actor.GetVisibility():
+            return None
+        return np.asarray(self._end_actor.GetPosition(), dtype=np.float64)
 
     # ----- camera -------------------------------------------------------------------------------
     def reset_camera(self) -> None:
@@ -219,14 +266,103 @@ class SkeletonViewport(QWidget):
         self._look_at((frames + self._offsets[:, None, None, :]).reshape(-1, 3))
 
     def _look_at(self, points: np.ndarray) -> None:
-        """Front-right, slightly-above view of the bounding box of ``points`` (N, 3)."""
+        """Front-right, slightly-above view of ``points`` (N, 3), as close as keeps each one in view.
+
+        The camera looks at the centre of the points' bounding box along a fixed direction; its distance
+        is the smallest at which every point lies within ``VIEW_MARGIN`` of the view's half-width and
+        half-height, for the view angle and the widget's current aspect ratio.
+        """
+        points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
         lo, hi = points.min(0), points.max(0)
         center = (lo + hi) / 2
-        extent = max(float(np.max(hi - lo)), 1.8)
-        position = center + np.array([0.5, 0.35, 1.0]) * 1.6 * extent
+        back = np.array([0.5, 0.35, 1.0])
+        back /= np.linalg.norm(back)
+        up = np.array([0.0, 1.0, 0.0])
+        right = np.cross(up, back)
+        right /= np.linalg.norm(right)
+        true_up = np.cross(back, right)
+        rel = points - center
+        x, y, depth = rel @ right, rel @ true_up, rel @ back
+        tan_v = np.tan(np.radians(self.plotter.camera.view_angle) / 2) * VIEW_MARGIN
+        tan_h = tan_v * self._aspect()
+        distance = float(np.max(np.maximum(depth + np.abs(x) / tan_h, depth + np.abs(y) / tan_v)))
+        distance = max(distance, float(np.max(depth)) + 0.5, 2.5)
+        position = center + back * distance
         self.plotter.camera_position = [tuple(position), tuple(center), (0.0, 1.0, 0.0)]
+        self.plotter.renderer.ResetCameraClippingRange()
+        self._framed = points
         self._follow_anchor = None
         self._schedule_render()
+
+    def _aspect(self) -> float:
+        """Width / height of the 3-D view in pixels."""
+        widget = self.plotter.interactor
+        return max(widget.width(), 1) / max(widget.height(), 1)
+
+    def project(self, points: np.ndarray) -> np.ndarray:
+        """(N, 2) normalised view coordinates (-1..1 across the view) of world ``points`` (N, 3);
+        a point behind the camera gets inf."""
+        pts = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+        matrix = self.plotter.camera.GetCompositeProjectionTransformMatrix(self._aspect(), -1.0, 1.0)
+        m = np.array([[matrix.GetElement(i, j) for j in range(4)] for i in range(4)])
+        h = np.c_[pts, np.ones(len(pts))] @ m.T
+        w = h[:, 3:4]
+        return np.where(w > 1e-9, h[:, :2] / np.where(w > 1e-9, w, 1.0), np.inf)
+
+    def in_view(self, points: np.ndarray) -> bool:
+        """Whether every world point (N, 3) projects inside the view."""
+        return bool(np.all(np.abs(self.project(points)) <= 1.0))
+
+    def keep_in_view(self, frames: np.ndarray) -> bool:
+        """Re-aim the camera (as ``frame_motion``) only if part of ``frames`` (n, T, J, 3) is out of view;
+        True when it moved."""
+        frames = np.asarray(frames, dtype=np.float64)
+        if self._follow or self.in_view((frames + self._offsets[:, None, None, :]).reshape(-1, 3)):
+            return False
+        self.frame_motion(frames)
+        return True
+
+    def resizeEvent(self, event: QResizeEvent) -> None:  # noqa: N802
+        """Keep what was framed in view when the widget's aspect ratio changes."""
+        super().resizeEvent(event)
+        if self._framed is not None and not self._follow and not self._closed:
+            self._look_at(self._framed)
+
+    # ----- labels -------------------------------------------------------------------------------
+    def set_labels(self, labels: Sequence[str] | None) -> None:
+        """Draw ``labels`` (one per skeleton) above the skeletons' heads; None or [] removes them."""
+        for actor in self._label_actors:
+            self.plotter.remove_actor(actor, render=False)
+        self._label_actors = []
+        self._labels = list(labels or [])
+        if self._labels and len(self._labels) != self._n:
+            raise ValueError(f"expected {self._n} labels, got {len(self._labels)}")
+        for text in self._labels:
+            actor = vtkBillboardTextActor3D()
+            actor.SetInput(text)
+            actor.GetTextProperty().SetFontSize(14)
+            actor.GetTextProperty().SetJustificationToCentered()
+            actor.GetTextProperty().SetColor(0.9, 0.9, 0.9)
+            self.plotter.renderer.AddActor(actor)
+            self._label_actors.append(actor)
+        self._place_labels()
+        self._schedule_render()
+
+    def labels(self) -> list[str]:
+        """The labels drawn above the skeletons."""
+        return list(self._labels)
+
+    def label_positions(self) -> np.ndarray:
+        """(n, 3) world positions of the labels (empty without labels)."""
+        return np.array([a.GetPosition() for a in self._label_actors]).reshape(-1, 3)
+
+    def _place_labels(self) -> None:
+        if not self._label_actors:
+            return
+        points = self.skeleton_points()
+        for actor, pts in zip(self._label_actors, points, strict=True):
+            top = pts[np.argmax(pts[:, 1])]
+            actor.SetPosition(float(top[0]), float(top[1]) + LABEL_LIFT, float(top[2]))
 
     @property
     def follow(self) -> bool:

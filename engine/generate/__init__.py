@@ -4,26 +4,47 @@ Decoded motions are returned at display height: the model works with the frame-0
 (height included), so ``LoadedModel.root_height`` is added to y.
 """
 
+from engine.generate._across import RULE as ACROSS_RULE
+from engine.generate._across import interpolate_across, step_actions
+from engine.generate._chain import apply_transform, chain_motions, chain_transforms
 from engine.generate._decode import action_index, decode, decode_array, decode_batch, resolve_ends
-from engine.generate._encode import encode, encode_clips, guess_action
+from engine.generate._encode import (
+    WindowCodes,
+    bank_window,
+    encode,
+    encode_clips,
+    encode_windows,
+    guess_action,
+    window_starts,
+)
 from engine.generate._path import PathResult, follow_path, resample_path
 from engine.generate._sampling import Sample, interpolate, interpolation_codes, neighbours, sample
 
 __all__ = [
+    "ACROSS_RULE",
     "PathResult",
     "Sample",
+    "WindowCodes",
     "action_index",
+    "apply_transform",
+    "bank_window",
+    "chain_motions",
+    "chain_transforms",
     "decode",
     "decode_array",
     "decode_batch",
     "encode",
     "encode_clips",
+    "encode_windows",
     "follow_path",
     "guess_action",
     "interpolate",
+    "interpolate_across",
     "interpolation_codes",
     "neighbours",
     "resample_path",
     "resolve_ends",
     "sample",
+    "step_actions",
+    "window_starts",
 ]

@@ -70,3 +70,60 @@ def encode(loaded: LoadedModel, motion: Motion) -> tuple[np.ndarray, int | None]
     of its action index (None without a latent bank)."""
     codes, _ = encode_clips(loaded, [motion])
     return codes[0], guess_action(loaded, codes[0])
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class WindowCodes:
+    """A clip encoded window by window.
+
+    Parameters
+    ----------
+    codes : (W, D) float32 posterior mean codes, one per window.
+    ends : (W, 3) float32 end locations of the windows.
+    starts : (W,) first frame of each window, at the model's frame rate.
+    stride : frames between window starts.
+    actions : (W,) guessed action of each window (-1 without a latent bank).
+    """
+
+    codes: np.ndarray
+    ends: np.ndarray
+    starts: np.ndarray
+    stride: int
+    actions: np.ndarray
+
+
+def window_starts(n_frames: int, window: int, stride: int) -> np.ndarray:
+    """First frames of ``window``-frame windows every ``stride`` frames over ``n_frames``; the last
+    window ends at the clip's last frame; one window (start 0) for a clip no longer than a window."""
+    if stride < 1:
+        raise ConfigError(f"stride must be at least 1 frame, got {stride}")
+    last = max(int(n_frames) - int(window), 0)
+    starts = np.arange(0, last + 1, int(stride))
+    return np.unique(np.append(starts, last)).astype(np.int64)
+
+
+def encode_windows(loaded: LoadedModel, motion: Motion, stride: int | None = None) -> WindowCodes:
+    """Encode ``motion`` as its T-frame windows every ``stride`` frames (default T / 2) at the model's fps,
+    so that a long clip becomes a path of codes; each window is canonicalised like a training window."""
+    stride = loaded.window // 2 if stride is None else int(stride)
+    moved = conform(loaded, motion)
+    if abs(moved.fps - loaded.fps) > 1e-6:
+        moved = moved.resample(loaded.fps)
+    starts = window_starts(moved.n_frames, loaded.window, stride)
+    pieces = [moved.with_joints(moved.joints[s : s + loaded.window]) for s in starts]
+    codes, ends = encode_clips(loaded, pieces)
+    guesses = [guess_action(loaded, c) for c in codes]
+    actions = np.array([-1 if g is None else g for g in guesses], dtype=np.int64)
+    return WindowCodes(codes, ends, starts, stride, actions)
+
+
+def bank_window(loaded: LoadedModel, clip: Motion) -> Motion:
+    """The window of ``clip`` that a bank code of it encodes (its centre T frames at the model's fps),
+    canonicalised as the model's output is (frame-0 root at the origin, facing +z) at display height."""
+    moved = dataclasses.replace(conform(loaded, clip), action=loaded.action_names[0])
+    prepared = prepare_clips([moved], loaded.action_names, loaded.fps, loaded.window)
+    window = crop_windows(prepared, np.arange(1), None)
+    length = int(window.mask[0].sum())
+    joints = window.joints[0, :length] + np.array([0.0, loaded.root_height, 0.0], dtype=np.float32)
+    meta = dict(clip.meta) | {"window_start": int(window.starts[0])}
+    return Motion(joints, loaded.fps, loaded.skeleton, action=clip.action, meta=meta)

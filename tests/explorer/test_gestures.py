@@ -3,40 +3,14 @@
 from __future__ import annotations
 
 import numpy as np
-from PySide6.QtCore import QPoint, Qt
+from PySide6.QtCore import Qt
 
 from engine import generate
 from engine.latent.modes import ModeModel
 from tests.explorer.conftest import Opened
-
-
-def _pixel(opened: Opened, xy: np.ndarray) -> QPoint:
-    return opened.window.latent_map.data_to_widget(xy).toPoint()
-
-
-def _click(qtbot, opened: Opened, xy: np.ndarray) -> None:
-    viewport = opened.window.latent_map.plot.viewport()
-    qtbot.mouseClick(viewport, Qt.MouseButton.LeftButton, pos=_pixel(opened, xy))
-
-
-def _drag(qtbot, opened: Opened, path: list[np.ndarray], between=None) -> None:
-    viewport = opened.window.latent_map.plot.viewport()
-    qtbot.mouseMove(viewport, _pixel(opened, path[0]))
-    qtbot.mousePress(viewport, Qt.MouseButton.LeftButton, pos=_pixel(opened, path[0]))
-    for xy in path[1:]:
-        qtbot.wait(25)  # pyqtgraph drops move events closer than its rate limit
-        qtbot.mouseMove(viewport, _pixel(opened, xy))
-        if between is not None:
-            between()
-    qtbot.wait(25)
-    qtbot.mouseRelease(viewport, Qt.MouseButton.LeftButton, pos=_pixel(opened, path[-1]))
-
-
-def _isolated_points(embedding: np.ndarray, count: int) -> list[int]:
-    """Indices of ``count`` points far from their neighbours (so a click cannot pick another)."""
-    d = np.linalg.norm(embedding[:, None] - embedding[None], axis=-1)
-    np.fill_diagonal(d, np.inf)
-    return [int(i) for i in np.argsort(-d.min(axis=1))[:count]]
+from tests.explorer.gestures import click_map as _click
+from tests.explorer.gestures import drag_map as _drag
+from tests.explorer.gestures import isolated_points as _isolated_points
 
 
 def _inside(point: np.ndarray, polygon: np.ndarray) -> bool:
@@ -108,8 +82,9 @@ def test_drag_between_points_updates_viewport_and_leaves_strip(qtbot, explorer: 
     viewport = window.viewport
     lead = viewport.offsets[0]
     assert lead[0] < 0
-    marker = np.asarray(viewport._end_actor.GetPosition())
-    np.testing.assert_allclose(marker, np.asarray(c.state.shown[0].end) + lead, atol=1e-5)
+    lift = np.array([0.0, c.loaded.root_height, 0.0])  # the model's end is relative to the floor origin
+    expected = np.asarray(c.state.shown[0].end) + lift + lead
+    np.testing.assert_allclose(viewport.end_marker(), expected, atol=1e-5)
 
 
 def test_lasso_selects_exactly_the_points_inside(qtbot, explorer: Opened) -> None:
