@@ -18,7 +18,9 @@ Layouts
 Clips carry joint positions only (no local rotations). An unreadable clip raises DataError
 naming the file (``on_error="raise"``, the default) or is skipped with a logged warning
 (``on_error="skip"``). Parsed clips are cached in one file per folder under ``$ODMO_CACHE_DIR``
-(default ``~/.cache/odmo-explorer``), keyed by each file's content hash.
+(default ``~/.cache/odmo-explorer``), keyed by each file's content hash. Each entry carries a CRC-32 of
+its parsed content; an unreadable cache, or an entry that fails its check, is rebuilt from the source
+files with a logged warning, never trusted.
 """
 
 from __future__ import annotations
@@ -29,6 +31,8 @@ import json
 import logging
 import os
 import re
+import zipfile
+import zlib
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -38,13 +42,14 @@ import numpy as np
 
 from engine.errors import CancelledError, ConfigError, DataError, OdmoError
 from engine.fileio import atomic_write
+from engine.limits import check_file_size
 from engine.motion.axes import check_up_axis
 from engine.motion.motion import Motion
 from engine.motion.skeleton import Skeleton
 
 log = logging.getLogger(__name__)
 
-CACHE_VERSION = 1
+CACHE_VERSION = 2  # 2: a CRC-32 of each entry's content, verified on read
 BANDAI_DROP_JOINTS = ("joint_Root",)
 _MOTION_SUFFIXES = (".bvh", ".npz", ".npy")
 _BANDAI_PREFIX = re.compile(r"^dataset-\d+_")
@@ -280,18 +285,22 @@ def _load_clip(entry: _Entry, store: _Cache | None, drop: Sequence[str], up_axis
     from engine.motion.formats import read_motion
 
     try:
+        check_file_size(entry.path, "motion file")
         data = entry.path.read_bytes()
     except OSError as exc:
         raise DataError(f"cannot read ({exc})") from None
     digest = hashlib.blake2b(data, digest_size=16).hexdigest()
-    parsed = store.get(digest) if store is not None else None
-    if parsed is None:
-        motion = read_motion(entry.path, up_axis=up_axis).without_joints(drop)
-        parsed = (motion.joints, motion.fps, motion.skeleton)
-        if store is not None:
-            store.put(digest, parsed)
-    joints, fps, skeleton = parsed
-    return digest, Motion(joints, fps, skeleton, action=entry.action, meta=dict(entry.meta))
+    cached = store.get(digest) if store is not None else None
+    if cached is not None:
+        try:
+            return digest, Motion(*cached, action=entry.action, meta=dict(entry.meta))
+        except OdmoError as exc:
+            log.warning("the cached copy of %s is unusable (%s); re-reading the file", entry.path, exc)
+    motion = read_motion(entry.path, up_axis=up_axis).without_joints(drop)
+    parsed = (motion.joints, motion.fps, motion.skeleton)
+    if store is not None:
+        store.put(digest, parsed)
+    return digest, Motion(*parsed, action=entry.action, meta=dict(entry.meta))
 
 
 def drop_extra_joints(motion: Motion, names: Sequence[str]) -> Motion:
@@ -320,9 +329,19 @@ class _Cache:
         self.dirty = False
         if self.path.is_file():
             try:
-                self.entries = _read_cache(self.path)
-            except (OSError, ValueError, KeyError, OdmoError) as exc:
-                log.warning("ignoring unreadable cache %s: %s", self.path, exc)
+                self.entries, damaged = _read_cache(self.path)
+            except (OSError, ValueError, KeyError, IndexError, TypeError, EOFError, zipfile.BadZipFile,
+                    zlib.error, OdmoError) as exc:  # fmt: skip
+                log.warning("rebuilding the unreadable cache %s (%s: %s)", self.path, type(exc).__name__, exc)
+                damaged = 0
+                self.dirty = True
+            if damaged:
+                log.warning(
+                    "%s: %d cached clips failed their checksum; re-reading them from the source files",
+                    self.path,
+                    damaged,
+                )
+                self.dirty = True
 
     def get(self, digest: str) -> _Parsed | None:
         """The cached clip with this content hash, or None."""
@@ -370,30 +389,52 @@ def _write_cache(path: Path, entries: dict[str, _Parsed]) -> None:
             len(skeletons), len(first.end_sites), 3
         ),
         "units": np.asarray([skel.units for skel in skeletons], dtype=np.str_),
+        "checks": np.array([_entry_check(*entry) for entry in parsed], dtype=np.uint32),
     }
     with atomic_write(path, "wb") as handle:
         np.savez(handle, **arrays)
 
 
-def _read_cache(path: Path) -> dict[str, _Parsed]:
-    """Clips of a cache file written by :func:`_write_cache`, keyed by content hash."""
-    with np.load(path, allow_pickle=False) as archive:
+def _entry_check(joints: np.ndarray, fps: float, skeleton: Skeleton) -> int:
+    """CRC-32 of one cache entry's content: joints, fps, offsets, End Sites and units."""
+    crc = zlib.crc32(np.ascontiguousarray(joints, dtype=np.float32))
+    crc = zlib.crc32(np.asarray([fps], dtype=np.float64), crc)
+    crc = zlib.crc32(np.ascontiguousarray(skeleton.offsets, dtype=np.float64), crc)
+    sites = np.asarray([o for _, o in skeleton.end_sites], dtype=np.float64)
+    return zlib.crc32(skeleton.units.encode(), zlib.crc32(sites, crc))
+
+
+def _read_cache(path: Path) -> tuple[dict[str, _Parsed], int]:
+    """Clips of a cache file written by :func:`_write_cache` keyed by content hash, and how many entries
+    failed their check (left out)."""
+    check_file_size(path, "dataset cache")
+    # Our own handle: np.load leaves its file open when the archive is corrupt.
+    with path.open("rb") as handle, np.load(handle, allow_pickle=False) as archive:
         data = {key: archive[key] for key in archive.files}
     if int(data["version"]) != CACHE_VERSION:
-        return {}
+        return {}, 0
     names = tuple(data["names"].tolist())
     site_parents = data["site_parents"].tolist()
     bounds = np.concatenate([[0], np.cumsum(data["frames"])])
+    checks = data["checks"]
     skeletons: dict[bytes, Skeleton] = {}  # clips of one performer share one Skeleton object
-    entries = {}
+    entries, damaged = {}, 0
     for i, digest in enumerate(data["digests"].tolist()):
         offsets, site_offsets, units = data["offsets"][i], data["site_offsets"][i], str(data["units"][i])
         key = offsets.tobytes() + site_offsets.tobytes() + units.encode()
-        if key not in skeletons:
-            sites = tuple(
-                (p, (float(o[0]), float(o[1]), float(o[2])))
-                for p, o in zip(site_parents, site_offsets, strict=True)
-            )
-            skeletons[key] = Skeleton(names, data["parents"], offsets, sites, units)
-        entries[digest] = (data["joints"][bounds[i] : bounds[i + 1]], float(data["fps"][i]), skeletons[key])
-    return entries
+        try:
+            if key not in skeletons:
+                sites = tuple(
+                    (p, (float(o[0]), float(o[1]), float(o[2])))
+                    for p, o in zip(site_parents, site_offsets, strict=True)
+                )
+                skeletons[key] = Skeleton(names, data["parents"], offsets, sites, units)
+        except OdmoError:
+            damaged += 1
+            continue
+        joints, fps = data["joints"][bounds[i] : bounds[i + 1]], float(data["fps"][i])
+        if _entry_check(joints, fps, skeletons[key]) != int(checks[i]):
+            damaged += 1
+            continue
+        entries[digest] = (joints, fps, skeletons[key])
+    return entries, damaged

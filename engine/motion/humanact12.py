@@ -126,12 +126,16 @@ def read_actor_pickle(path: str | Path, allow_pickle: bool = False, fps: float =
     if not isinstance(data, dict) or "joints3D" not in data or "y" not in data:
         raise MotionFormatError("expected a dict with 'joints3D' and 'y' (ACTOR humanact12poses.pkl)", path)
     clips, labels = data["joints3D"], data["y"]
+    if not isinstance(clips, list | tuple) or not isinstance(labels, list | tuple | np.ndarray):
+        raise MotionFormatError("'joints3D' and 'y' must be lists (ACTOR humanact12poses.pkl)", path)
     if len(clips) != len(labels):
         raise MotionFormatError(f"{len(clips)} clips but {len(labels)} labels", path)
     skeleton = smpl24_skeleton()
     motions = []
     for i, (joints, label) in enumerate(zip(clips, labels, strict=True)):
-        if not isinstance(label, int | np.integer) or not 0 <= int(label) < len(ACTIONS):
+        if isinstance(label, bool | np.bool_) or not isinstance(label, int | np.integer):
+            raise MotionFormatError(f"clip {i}: label {label!r} is not a coarse class id 0..11", path)
+        if not 0 <= int(label) < len(ACTIONS):
             raise MotionFormatError(f"clip {i}: label {label!r} is not a coarse class id 0..11", path)
         try:
             motion = Motion(np.asarray(joints), fps, skeleton, action=ACTIONS[int(label)])

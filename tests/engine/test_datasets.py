@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import re
 import shutil
 from pathlib import Path
 
@@ -204,3 +205,79 @@ def test_bandai_clips_copied_out_of_the_dataset_keep_their_labels(bandai_dir: Pa
     assert on_model.skeleton.names == model_names
     np.testing.assert_array_equal(on_model.joints, clip.joints[:, 1:])
     assert drop_extra_joints(clip, (*model_names, "Tail")) is clip
+
+
+def _cache_file(private_cache: Path) -> Path:
+    (found,) = private_cache.glob("datasets/*.npz")
+    return found
+
+
+def _rewrite_cache(path: Path, change) -> None:
+    """Rewrite the cache's arrays through ``change(arrays)``: a well-formed file with other content."""
+    with np.load(path, allow_pickle=False) as npz:
+        arrays = {k: npz[k] for k in npz.files}
+    change(arrays)
+    with path.open("wb") as handle:
+        np.savez(handle, **arrays)
+
+
+def _zero_joints(arrays: dict) -> None:
+    arrays["joints"] = np.zeros_like(arrays["joints"])
+
+
+def _nan_joints(arrays: dict) -> None:
+    arrays["joints"] = arrays["joints"].copy()
+    arrays["joints"][5] = np.nan
+
+
+def _flip_bytes(path: Path) -> None:
+    data = bytearray(path.read_bytes())
+    middle = len(data) // 2
+    data[middle : middle + 64] = bytes(b ^ 0xFF for b in data[middle : middle + 64])
+    path.write_bytes(bytes(data))
+
+
+@pytest.mark.parametrize(
+    "damage",
+    [
+        lambda p: _rewrite_cache(p, _zero_joints),
+        lambda p: _rewrite_cache(p, _nan_joints),
+        _flip_bytes,
+        lambda p: p.write_bytes(p.read_bytes()[: p.stat().st_size // 3]),
+        lambda p: p.write_bytes(b"not a zip at all"),
+    ],
+    ids=["zeroed-joints", "nan-joints", "flipped-bytes", "truncated", "junk"],
+)
+def test_damaged_cache_is_rebuilt_from_the_source_files(
+    mini_bandai: Path, private_cache: Path, damage, caplog: pytest.LogCaptureFixture
+) -> None:
+    fresh = load_folder(mini_bandai)
+    cache = _cache_file(private_cache)
+    damage(cache)
+    with caplog.at_level("WARNING", logger="engine.motion.datasets"):
+        again = load_folder(mini_bandai)
+    assert any(str(cache) in r.getMessage() for r in caplog.records), "the damage must be reported"
+    assert again.fingerprint == fresh.fingerprint
+    for a, b in zip(fresh.clips, again.clips, strict=True):
+        np.testing.assert_array_equal(a.joints, b.joints)
+    caplog.clear()
+    with caplog.at_level("WARNING", logger="engine.motion.datasets"):
+        third = load_folder(mini_bandai)  # the rebuilt cache is clean again
+    assert not caplog.records
+    np.testing.assert_array_equal(third.clips[0].joints, fresh.clips[0].joints)
+
+
+def test_damaged_cache_gives_no_traceback_in_the_cli(mini_bandai: Path, private_cache: Path) -> None:
+    import os
+    import subprocess
+    import sys
+
+    load_folder(mini_bandai)
+    _flip_bytes(_cache_file(private_cache))
+    env = os.environ | {"ODMO_CACHE_DIR": str(private_cache)}
+    run = subprocess.run(
+        [sys.executable, "-m", "engine", "info", str(mini_bandai)], capture_output=True, text=True, env=env
+    )
+    assert run.returncode == 0, run.stderr
+    assert "Traceback" not in run.stderr and re.search(r"clips:\s+6 ", run.stdout)
+    assert "failed their checksum" in run.stderr or "unreadable cache" in run.stderr

@@ -147,3 +147,43 @@ def test_wrong_pickle_contents_are_reported(tmp_path: Path) -> None:
     path.write_bytes(b"\x80\x04junk")
     with pytest.raises(MotionFormatError, match="pickle"):
         load_data_pickle(path)
+
+
+def _memory_bombs() -> dict[str, bytes]:
+    """Pickles of a few dozen bytes that use only allowed globals yet ask for terabytes."""
+    reconstruct = (
+        b"\x80\x02cnumpy.core.multiarray\n_reconstruct\ncnumpy\nndarray\n"
+        b"\x8a\x06\x00\xa0\x72\x4e\x18\x09\x85C\x01b\x87R."  # _reconstruct(ndarray, (10**13,), b'b')
+    )
+    ndarray = b"\x80\x02cnumpy\nndarray\n\x8a\x06\x00\xa0\x72\x4e\x18\x09\x85U\x02f8\x86R."
+    binbytes8 = b"\x80\x04\x8e" + (2**40).to_bytes(8, "little") + b"abc."
+    unicode8 = b"\x80\x04\x8d" + (2**40).to_bytes(8, "little") + b"abc."
+    frame = b"\x80\x04\x95" + (2**40).to_bytes(8, "little") + b"N."
+    return {"reconstruct": reconstruct, "ndarray": ndarray, "binbytes8": binbytes8, "unicode8": unicode8,
+            "frame": frame}  # fmt: skip
+
+
+@pytest.mark.parametrize("name", sorted(_memory_bombs()))
+def test_allowed_globals_cannot_exhaust_memory(tmp_path: Path, name: str) -> None:
+    """Refused with one error naming the file, before allocating, even under a 1.5 GB address space."""
+    import subprocess
+    import sys
+
+    path = tmp_path / f"{name}.pkl"
+    path.write_bytes(_memory_bombs()[name])
+    with pytest.raises(MotionFormatError, match=rf"{name}\.pkl: .*(refused|claims|memory)"):
+        load_data_pickle(path)
+    script = (
+        "import resource, sys; resource.setrlimit(resource.RLIMIT_AS, (1536 * 2**20, 1536 * 2**20));"
+        "from engine.cli import main; sys.exit(main(['info', '--allow-pickle', sys.argv[1]]))"
+    )
+    run = subprocess.run([sys.executable, "-c", script, str(path)], capture_output=True, text=True)
+    assert run.returncode == 1 and "Traceback" not in run.stderr, run.stderr
+    assert run.stderr.count("\n") == 1 and path.name in run.stderr
+
+
+def test_pickle_labels_must_be_integers(tmp_path: Path) -> None:
+    path = tmp_path / "bools.pkl"
+    path.write_bytes(pickle.dumps({"joints3D": [np.zeros((5, 24, 3))], "y": [True]}))
+    with pytest.raises(MotionFormatError, match=r"label True is not a coarse class id"):
+        read_actor_pickle(path, allow_pickle=True)
