@@ -21,9 +21,13 @@ from engine.motion.motion import Motion
 from explorer import export
 from explorer.main_window import MainWindow
 from explorer.map_layers import (
+    META_PREFIX,
     category_colors,
+    color_key,
     gaussian_outline,
+    meta_keys,
     mode_labels,
+    mode_note,
     mode_overlays,
     motion_energy,
     point_colors,
@@ -80,6 +84,7 @@ class Controller(QObject):
         self._played: list[Motion] = []
         self._rig: tuple[bytes, int, str] | None = None
         self._model_task = None
+        self.load_error = ""  # why the last model failed to load ("" when it did not)
         self._preview: BankPreview | None = None
         self._drawn: tuple[np.ndarray, np.ndarray] | None = None  # (embedding, colours) on the map
         self._tips: tuple[object, list[str]] | None = None  # (bank, its tooltips)
@@ -258,9 +263,28 @@ class Controller(QObject):
                 raise ModelFormatError(f"{path}: the model has no latent bank (latent_bank.npz)")
             return loaded
 
-        self._model_task = self._run_task(f"Loading model {path.name}", job, self._model_ready)
+        title = f"Loading model {path.name}"
+        self.load_error = ""
+        self._model_task = self.tasks.run(title, job, self._model_ready, self._model_failed)
+
+    def _model_failed(self, exc: BaseException) -> None:
+        """The model could not be loaded: say why, keep what is shown, remember it (``load_error``)."""
+        self.load_error = str(exc) if isinstance(exc, OdmoError) else f"{type(exc).__name__}: {exc}"
+        if self._preview is not None and self.state.model is None:  # the preview promised a model
+            self.window.latent_map.set_points(np.zeros((0, 2)), np.zeros((0, 4)), np.zeros(0, dtype=np.int64))
+            self._preview, self._drawn = None, None
+        self.report_error("Cannot open the model", exc)
 
     def _model_ready(self, loaded: LoadedModel) -> None:
+        """Show a loaded model; a bank the app cannot show is reported like a failed load."""
+        try:
+            self._show_model(loaded)
+        except Exception as exc:
+            log.exception("showing %s failed", loaded.path)
+            self.state.model = None
+            self._model_failed(exc)
+
+    def _show_model(self, loaded: LoadedModel) -> None:
         self._projections = {k: v for k, v in loaded.bank.projections.items() if v.embedding_ is not None}
         self._energy = None
         self._weights = {}
@@ -281,7 +305,7 @@ class Controller(QObject):
         """Load a dataset folder in the background so real clips play beside their reconstructions."""
         path = Path(path)
 
-        def job(progress: Progress, cancel: Cancel) -> tuple[str, dict[str, Motion]]:
+        def job(progress: Progress, cancel: Cancel) -> tuple[str, dict[str, Motion], int]:
             from engine.motion.datasets import load_folder
 
             progress(f"Reading {path.name}", 0.05)
@@ -291,11 +315,13 @@ class Controller(QObject):
                 source = str(clip.meta.get("source", ""))
                 clips[source] = clip
                 clips.setdefault(Path(source).stem, clip)
-            return str(path), clips
+            return str(path), clips, len(dataset.clips)
 
-        def done(result: tuple[str, dict[str, Motion]]) -> None:
-            self.state.data_dir, self._real = result
-            self.window.show_status(f"Dataset {Path(result[0]).name}: {len(result[1])} clips available.")
+        def done(result: tuple[str, dict[str, Motion], int]) -> None:
+            self.state.data_dir, self._real, count = result
+            self.window.show_status(
+                f"Dataset {Path(result[0]).name}: {count} clips; click a code to play its clip beside it."
+            )
 
         self._run_task(f"Loading dataset {path.name}", job, done)
 
@@ -310,6 +336,7 @@ class Controller(QObject):
         w.action_combo.addItems(names)
         w.action_combo.setCurrentIndex(0)
         w.action_combo.blockSignals(False)
+        self._fill_color_combo(bank)
         w.viewport.set_skeletons(loaded.skeleton.parents, 1)
         self._rig = None
         self.state.focus_action = 0
@@ -323,6 +350,22 @@ class Controller(QObject):
             f"latent dim {loaded.config.latent_dim}. Click a point to decode it."
         )
         self.modelLoaded.emit(loaded)
+
+    def _fill_color_combo(self, bank: LatentBank) -> None:
+        """Offer the fixed colourings and every metadata key of ``bank`` worth colouring by."""
+        combo = self.window.color_combo
+        combo.blockSignals(True)
+        combo.clear()
+        for name in ("action", "mode", "motion energy"):
+            combo.addItem(name, name)
+        for key in meta_keys(bank.meta):
+            combo.addItem(key, META_PREFIX + key)
+        combo.blockSignals(False)
+        index = combo.findData(self.state.color_by)
+        if index < 0:
+            self.state.color_by = "action"
+            index = 0
+        combo.setCurrentIndex(index)
 
     # -- map -----------------------------------------------------------------------------------------
 
@@ -375,6 +418,7 @@ class Controller(QObject):
         self._reproject_extra()
         self._draw_overlays()
         self.window.latent_map.set_marker(self.state.marker)
+        lmap.set_key(*color_key(bank, self.state.color_by, self._energy))
 
     def _tooltips(self, bank: LatentBank) -> list[str]:
         """Hover texts of ``bank``'s codes (built once per bank)."""
@@ -473,20 +517,20 @@ class Controller(QObject):
             return
         modes = self.bank.modes.get(action)
         name = self.loaded.action_names[action]
+        note = mode_note(modes, len(self.bank.indices_of(action)))
         if modes is None:
-            w.mode_panel.set_action_modes(name, [], [], 0, [], [])
+            w.mode_panel.set_action_modes(name, [], [], 0, [], [], note)
         else:
             ks = sorted(modes.silhouette)
             weights = self._weights.get(action, modes.weights / max(float(np.max(modes.weights)), 1e-12))
-            # The panel wants one row per kept mode; after small modes are dropped that is fewer than K.
-            chosen = int(modes.k_chosen) if modes.n_modes == modes.k_chosen else modes.n_modes
             w.mode_panel.set_action_modes(
                 name,
                 ks,
                 [float(modes.silhouette[k]) for k in ks],
-                chosen,
+                int(modes.k_chosen),
                 [int(s) for s in modes.sizes()],
                 [float(v) for v in weights],
+                note,
             )
         self._draw_overlays()
 
@@ -513,9 +557,10 @@ class Controller(QObject):
             return
         self.state.selection = (int(index),)
         self.state.marker = None
+        self.state.extra = None  # the samples' diamonds belong to the samples, which no longer play
         self._decode_bank([int(index)], with_real=True)
 
-    def _decode_bank(self, indices: Sequence[int], with_real: bool = False) -> None:
+    def _decode_bank(self, indices: Sequence[int], with_real: bool = False, note: str = "") -> None:
         bank, real = self.bank, self._real
 
         def job() -> tuple[Decoded, ...]:
@@ -526,11 +571,12 @@ class Controller(QObject):
                 mode = None if labels[i] < 0 else int(labels[i])
                 motion = _decode_one(self.loaded, code, action, end, mode)
                 name = f"#{i} {bank.sources[i]}"
-                items.append(Decoded(motion, f"{name} (decoded)", code, action, end, mode, None, i))
+                items.append(Decoded(motion, f"{name} (decoded)", code, action, end, mode, None, i, note))
                 clip = real.get(str(bank.sources[i])) if with_real else None
-                if clip is not None:
-                    real_clip = _as_shown(clip, self.loaded.fps)
-                    items.append(Decoded(real_clip, f"{name} (real clip)", None, action))
+                if clip is not None:  # the window the code encodes, placed and turned as the decode is
+                    from engine.generate import bank_window
+
+                    items.append(Decoded(bank_window(self.loaded, clip), f"{name} (real clip)", None, action))
             return tuple(items)
 
         self.decoder.submit(job)
@@ -701,11 +747,20 @@ class Controller(QObject):
         self._draw_overlays()
 
     def play_selection(self) -> None:
-        """Decode the selected codes (up to ``MAX_PLAYED``) and play them together."""
-        if self.state.selection:
-            self._decode_bank(
-                list(self.state.selection[:MAX_PLAYED]), with_real=len(self.state.selection) == 1
-            )
+        """Decode up to ``MAX_PLAYED`` selected codes that cover the selection and play them together.
+
+        The codes are spread over the selection in the full latent space, each action getting a share
+        in proportion to its count (not the first codes by bank index); the status says which.
+        """
+        selection = np.asarray(self.state.selection, dtype=np.int64)
+        if not len(selection):
+            return
+        from engine.latent.neighbours import spread_subset
+
+        bank = self.bank
+        picked = selection[spread_subset(bank.codes[selection], bank.actions[selection], MAX_PLAYED)]
+        note = _selection_note(picked, selection, bank)
+        self._decode_bank([int(i) for i in picked], with_real=len(selection) == 1, note=note)
 
     def _selection_summary(self) -> tuple[np.ndarray, int, float]:
         """(centroid code, majority action, radius) of the selection."""
@@ -868,6 +923,7 @@ class Controller(QObject):
             self._rig, live = rig, False
             w.viewport.set_skeletons(played[0].skeleton.parents, len(played))
             w.viewport.set_layout("overlay" if self.state.layout == "overlay" else "side_by_side", 1.0)
+        w.viewport.set_colors(_skeleton_colors(shown, len(played), len(loaded.action_names)))
         lead = w.viewport.offsets[0]  # the end marker and root path belong to the first skeleton
         w.viewport.set_end_marker(None if scene.end is None else scene.end + lead)
         w.viewport.set_labels(scene.labels if w.labels_action.isChecked() else None)
@@ -1048,6 +1104,31 @@ def _decode_one(
     return generate.decode(loaded, np.array(code, dtype=np.float32), action, rows, mode=mode)
 
 
+def _selection_note(picked: np.ndarray, selection: np.ndarray, bank: LatentBank) -> str:
+    """'playing 12 of 57 selected (8 walk, 4 run), spread over the selection' (or '' for all)."""
+    if len(picked) == len(selection):
+        return f"playing all {len(selection)} selected"
+    counts = np.bincount(bank.actions[picked], minlength=len(bank.action_names))
+    parts = ", ".join(f"{c} {bank.action_names[a]}" for a, c in enumerate(counts) if c)
+    return f"playing {len(picked)} of {len(selection)} selected ({parts}), spread over the selection"
+
+
+def _skeleton_colors(shown: Sequence[Decoded], n: int, n_actions: int) -> np.ndarray:
+    """(n, 3) uint8 skeleton colours: each motion's action colour (as on the map), in lighter to darker
+    shades when several share an action; real clips are light grey."""
+    from widgets._colors import palette_rgb, shades
+
+    palette = palette_rgb(max(n_actions, 1))
+    rows = np.zeros((len(shown), 3), dtype=np.uint8)
+    actions = np.array([d.action for d in shown])
+    for action in np.unique(actions):
+        same = [k for k, d in enumerate(shown) if d.action == action and d.code is not None]
+        if same:
+            rows[same] = shades(palette[int(action) % len(palette)], len(same))
+    rows[[k for k, d in enumerate(shown) if d.code is None]] = (205, 205, 205)
+    return rows[:n]
+
+
 def _full_end(
     loaded: LoadedModel, code: np.ndarray, action: int, end: np.ndarray | None
 ) -> np.ndarray | None:
@@ -1069,11 +1150,3 @@ def _padded_frames(motions: Sequence[Motion], length: int) -> np.ndarray:
 def _root_xz(motion: Motion) -> np.ndarray:
     """(T, 2) floor path (x, z) of the motion's root."""
     return motion.joints[:, motion.skeleton.root][:, [0, 2]].astype(np.float64)
-
-
-def _as_shown(clip: Motion, fps: float) -> Motion:
-    """A real clip at the model's frame rate with its first root position moved to the floor origin."""
-    shown = clip.resample(fps) if abs(clip.fps - fps) > 1e-6 else clip
-    start = shown.joints[0, shown.skeleton.root].copy()
-    start[1] = 0.0
-    return shown.with_joints(shown.joints - start)

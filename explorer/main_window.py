@@ -94,6 +94,7 @@ class MainWindow(QMainWindow):
             from widgets.viewport import SkeletonViewport
 
             self._viewport = SkeletonViewport()
+            self._viewport.setMinimumSize(240, 200)
             self.viewport_dock.setWidget(self._viewport)
             self._viewport_placeholder.deleteLater()
             self.viewportCreated.emit()
@@ -109,6 +110,7 @@ class MainWindow(QMainWindow):
         dock = QDockWidget(title, self)
         dock.setObjectName(name)
         dock.setWidget(widget)
+        widget.setMinimumSize(160, 120)  # a shrunken window cannot squeeze a panel to a sliver
         dock.setFeatures(
             QDockWidget.DockWidgetMovable | QDockWidget.DockWidgetFloatable | QDockWidget.DockWidgetClosable
         )
@@ -205,7 +207,8 @@ class MainWindow(QMainWindow):
         self.hover_label.setObjectName("hover_label")
         status.addPermanentWidget(self.hover_label)
         self.progress_bar = QProgressBar()
-        self.progress_bar.setMaximumWidth(220)
+        self.progress_bar.setMinimumWidth(320)
+        self.progress_bar.setMaximumWidth(420)
         self.progress_bar.setRange(0, 1000)
         self.progress_bar.setTextVisible(True)
         self.progress_bar.hide()
@@ -234,7 +237,10 @@ class MainWindow(QMainWindow):
         else:
             self.progress_bar.setRange(0, 1000)
             self.progress_bar.setValue(int(max(0.0, min(1.0, fraction)) * 1000))
-        self.progress_bar.setFormat(f"{text} %p%")
+        metrics = self.progress_bar.fontMetrics()
+        room = max(self.progress_bar.width() - metrics.horizontalAdvance(" 100%") - 12, 40)
+        short = metrics.elidedText(text, Qt.TextElideMode.ElideRight, room)
+        self.progress_bar.setFormat(f"{short} %p%" if fraction is not None else short)
         self.progress_bar.setToolTip(text)
 
     def hide_progress(self) -> None:

@@ -55,8 +55,73 @@ def scalar_colors(values: np.ndarray, levels: int = SCALAR_LEVELS) -> np.ndarray
     return np.asarray(colormap.get("viridis").map(scaled, mode="float"), dtype=np.float64)
 
 
+META_PREFIX = "meta:"  # colour-by entries for a metadata key of the bank, e.g. "meta:style"
+MAX_META_VALUES = 40  # a metadata key with more distinct values than this is not offered as a colouring
+GREY = (0.5, 0.5, 0.5, 1.0)
+
+
+def meta_keys(meta: Sequence[dict[str, Any]]) -> list[str]:
+    """Metadata keys of the bank's clips worth colouring by: text values, 2..MAX_META_VALUES distinct."""
+    keys: dict[str, set[str]] = {}
+    for m in meta:
+        for key, value in m.items():
+            if isinstance(value, str) and key not in ("source", "path"):
+                keys.setdefault(key, set()).add(value)
+    return sorted(k for k, v in keys.items() if 2 <= len(v) <= MAX_META_VALUES)
+
+
+def meta_values(meta: Sequence[dict[str, Any]], key: str) -> tuple[list[str], np.ndarray]:
+    """The distinct values of ``key`` (sorted) and each clip's index among them (-1: missing)."""
+    raw = [m.get(key) for m in meta]
+    values = sorted({str(v) for v in raw if v is not None})
+    index = {v: i for i, v in enumerate(values)}
+    return values, np.array([index.get(str(v), -1) if v is not None else -1 for v in raw], dtype=np.int64)
+
+
+def energy_key(energy: np.ndarray, steps: int = 5) -> tuple[list[str], np.ndarray]:
+    """Labels and colours (steps, 4) of a colour key for motion energy (m/s) as ``scalar_colors`` maps it."""
+    lo, hi = np.percentile(energy, [2, 98])
+    values = np.linspace(lo, hi, steps)
+    colors = scalar_colors(np.concatenate([values, [lo, hi]]))[:steps]
+    labels = [
+        f"{v:.2f} m/s" + (" or less" if k == 0 else " or more" if k == steps - 1 else "")
+        for k, v in enumerate(values)
+    ]
+    return labels, colors
+
+
+def color_key(bank: LatentBank, color_by: str, energy: np.ndarray | None) -> tuple[str, list[str], list]:
+    """(title, names, colours) of the key for ``color_by`` ("" title for action: the legend says it)."""
+    if color_by == "mode":
+        labels = mode_labels(bank)
+        n = max(int(labels.max()) + 1, 1)
+        names = [f"mode {k}" for k in range(n)]
+        colors = [tuple(c) for c in category_colors(n)]
+        if np.any(labels < 0):
+            names.append("no modes")
+            colors.append(GREY)
+        return "Mode (within its action)", names, colors
+    if color_by == "motion energy":
+        if energy is None:
+            return "Motion energy: computing…", [], []
+        names, colors = energy_key(energy)
+        return "Mean joint speed", names, [tuple(c) for c in colors]
+    if color_by.startswith(META_PREFIX):
+        key = color_by[len(META_PREFIX) :]
+        values, _ = meta_values(bank.meta, key)
+        colors = [tuple(c) for c in category_colors(len(values))]
+        return key.capitalize(), values, colors
+    return "", [], []
+
+
 def point_colors(bank: LatentBank, color_by: str, energy: np.ndarray | None) -> np.ndarray:
-    """(N, 4) float RGBA colour of each bank code by action, mode or motion energy (grey until known)."""
+    """(N, 4) float RGBA colour of each bank code by action, mode, motion energy (grey until known) or
+    a metadata key (``META_PREFIX`` + key; grey where a clip has none)."""
+    if color_by.startswith(META_PREFIX):
+        values, index = meta_values(bank.meta, color_by[len(META_PREFIX) :])
+        colors = category_colors(max(len(values), 1))[np.maximum(index, 0)]
+        colors[index < 0] = GREY
+        return colors
     if color_by == "mode":
         labels = mode_labels(bank)
         colors = category_colors(max(int(labels.max()) + 1, 1))[np.maximum(labels, 0)]
@@ -92,9 +157,9 @@ def mode_overlays(
     """Outlines of ``action``'s modes on the map and their colours (N_modes, 4).
 
     Under PCA each mode's Gaussian is projected exactly and drawn as its half-peak ellipse; under the
-    non-linear maps, the convex hull of the mode's member codes is drawn.
+    non-linear maps, the half-peak ellipse of a Gaussian fitted to its member codes' map positions.
     """
-    from engine.latent.geometry import convex_hull, gaussian_ellipse, project_gaussian
+    from engine.latent.geometry import gaussian_ellipse, project_gaussian
     from engine.latent.projection import PCAProjection
 
     modes = bank.modes.get(action)
@@ -109,18 +174,59 @@ def mode_overlays(
         members = bank.indices_of(action)
         labels = np.asarray(modes.labels)
         for k in range(modes.n_modes):
-            curves.append(convex_hull(embedding[members[labels == k]]))
-    return curves, category_colors(modes.n_modes)
+            curve = members_ellipse(embedding[members[labels == k]])
+            if curve is not None:
+                curves.append(curve)
+    return curves, category_colors(modes.n_modes)[: len(curves)]
+
+
+def members_ellipse(xy: np.ndarray) -> np.ndarray | None:
+    """Half-peak ellipse (64, 2) of a Gaussian fitted to map positions ``xy`` (M, 2); None under 3 points."""
+    from engine.latent.geometry import gaussian_ellipse
+
+    xy = np.asarray(xy, dtype=np.float64).reshape(-1, 2)
+    if len(xy) < 3:
+        return None
+    cov = np.cov(xy, rowvar=False) + 1e-9 * np.eye(2)
+    return gaussian_ellipse(xy.mean(axis=0), cov, level=0.5)
 
 
 def gaussian_outline(
     mean: np.ndarray, cov: np.ndarray, projection: Projection, members_xy: np.ndarray
 ) -> np.ndarray:
-    """Outline of one fitted Gaussian: its exact half-peak ellipse under PCA, else its members' hull."""
+    """Outline of one fitted Gaussian: its exact half-peak ellipse under PCA, else its members' ellipse."""
     from engine.latent.geometry import convex_hull, gaussian_ellipse, project_gaussian
     from engine.latent.projection import PCAProjection
 
     if isinstance(projection, PCAProjection):
         mean2, cov2 = project_gaussian(mean, cov, projection.components_, projection.mean_)
         return gaussian_ellipse(mean2, cov2, level=0.5)
-    return convex_hull(members_xy)
+    curve = members_ellipse(members_xy)
+    return curve if curve is not None else convex_hull(members_xy)
+
+
+def mode_note(modes: Any, n_codes: int, ratio: float = 0.95) -> str:
+    """Why the action has the modes shown: which K the silhouette rule chose, and what was dropped.
+
+    ``modes`` is the action's ``ModeModel`` or None; ``n_codes`` its number of bank codes.
+    """
+    if modes is None:
+        if n_codes == 0:
+            return "No modes: the bank holds no code of this action (no training clip was labelled with it)."
+        return f"No modes: the bank has {n_codes} codes of this action but no mode model for it."
+    scores = {int(k): float(v) for k, v in modes.silhouette.items()}
+    scored = {k: v for k, v in scores.items() if np.isfinite(v)}
+    if not scored:
+        span = f"{min(scores)}–{max(scores)}" if scores else "the range searched"
+        return f"1 mode (the action's single Gaussian): no K in {span} could be scored on {n_codes} codes."
+    k = int(modes.k_chosen)
+    best = max(scored, key=scored.get)
+    if k == best:
+        why = "the best silhouette"
+    else:
+        why = f"the first K scoring above {ratio:.0%} of K + 1's (a smaller K is preferred)"
+    text = f"K = {k} chosen: {why}."
+    if modes.n_modes < k:
+        dropped = k - modes.n_modes
+        text += f" {modes.n_modes} kept; {dropped} dropped for having too few clips."
+    return text

@@ -29,10 +29,30 @@ PALETTE: tuple[tuple[int, int, int], ...] = (
 )
 
 
+SELECTION = "#ffffff"  # selection ring and map marker: no category uses white
+
+
 def palette_rgb(n: int) -> np.ndarray:
-    """Return ``n`` categorical colours, shape (n, 3) uint8, cycling the palette."""
+    """Return ``n`` distinct categorical colours, shape (n, 3) uint8: the palette, then hues spaced by
+    the golden angle (so the 11th action does not reuse the 1st's colour)."""
     base = np.asarray(PALETTE, dtype=np.uint8)
-    return base[np.arange(n) % len(base)]
+    if n <= len(base):
+        return base[:n].copy()
+    extra = []
+    for k in range(n - len(base)):
+        color = QColor.fromHsvF((0.07 + k * 0.381966) % 1.0, 0.55 if k % 2 else 0.75, 0.95 if k % 3 else 0.8)
+        extra.append((color.red(), color.green(), color.blue()))
+    return np.concatenate([base, np.asarray(extra, dtype=np.uint8)])
+
+
+def shades(rgb: np.ndarray, n: int) -> np.ndarray:
+    """(n, 3) uint8 shades of one colour ``rgb`` (3,), from lighter to darker (n = 1: the colour)."""
+    if n == 1:
+        return np.asarray(rgb, dtype=np.uint8).reshape(1, 3)
+    t = np.linspace(-0.35, 0.35, n)[:, None]
+    rgb = np.asarray(rgb, dtype=np.float64).reshape(1, 3)
+    out = np.where(t < 0, rgb + (255 - rgb) * -t, rgb * (1 - t))
+    return np.clip(np.rint(out), 0, 255).astype(np.uint8)
 
 
 def to_rgba8(colors: np.ndarray, n: int) -> np.ndarray:

@@ -13,6 +13,7 @@ from PySide6.QtWidgets import (
     QButtonGroup,
     QCheckBox,
     QHBoxLayout,
+    QLabel,
     QScrollArea,
     QToolButton,
     QToolTip,
@@ -20,7 +21,7 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
-from widgets._colors import ACCENT, FOREGROUND, brushes_for, configure_plot, qcolor, to_rgba8
+from widgets._colors import FOREGROUND, SELECTION, brushes_for, configure_plot, qcolor, to_rgba8
 
 Tool = Literal["pick", "lasso"]
 
@@ -100,15 +101,16 @@ class LatentMap(QWidget):
         self.view_box = GestureViewBox(self._handle_click, self._handle_drag, self._handle_hover)
         self.plot = pg.PlotWidget(viewBox=self.view_box)
         configure_plot(self.plot)
-        self.view_box.setAspectLocked(False)
+        self.view_box.setAspectLocked(True)  # one map unit is as long across as up
         self.scatter = PassiveScatter(pxMode=True, size=point_size, pen=None, symbol="o")
         self._highlight = PassiveScatter(
-            pxMode=True, size=point_size + 8, pen=pg.mkPen(ACCENT, width=2), brush=None, symbol="o"
+            pxMode=True, size=point_size + 8, pen=pg.mkPen(SELECTION, width=2), brush=None, symbol="o"
         )
         self._extra = PassiveScatter(pxMode=True, size=point_size + 5, pen=pg.mkPen("w"), symbol="d")
-        self._marker = PassiveScatter(pxMode=True, size=20, pen=pg.mkPen("k"), brush=ACCENT, symbol="star")
-        self._lasso_curve = pg.PlotCurveItem(pen=pg.mkPen(ACCENT, width=1.5, style=Qt.PenStyle.DashLine))
+        self._marker = PassiveScatter(pxMode=True, size=20, pen=pg.mkPen("k"), brush=SELECTION, symbol="star")
+        self._lasso_curve = pg.PlotCurveItem(pen=pg.mkPen(SELECTION, width=1.5, style=Qt.PenStyle.DashLine))
         self._overlays: list[pg.PlotCurveItem] = []
+        self._halos: list[pg.PlotCurveItem] = []
         layers = (self.scatter, self._highlight, self._extra, self._marker, self._lasso_curve)
         for z, item in enumerate(layers):
             item.setZValue(10 + z)
@@ -124,6 +126,15 @@ class LatentMap(QWidget):
         legend_scroll.setMaximumWidth(200)
         self._legend_scroll = legend_scroll
         legend_scroll.hide()
+        self.key_label = QLabel()  # what the colours mean when they are not the actions
+        self.key_label.setObjectName("colour_key")
+        self.key_label.setTextFormat(Qt.TextFormat.RichText)
+        self.key_label.setWordWrap(True)
+        self.key_label.setMaximumWidth(200)
+        self.key_label.hide()
+        side = QVBoxLayout()
+        side.addWidget(self.key_label)
+        side.addWidget(legend_scroll, 1)
 
         self._tool_group = QButtonGroup(self)
         tools = QHBoxLayout()
@@ -138,7 +149,7 @@ class LatentMap(QWidget):
 
         body = QHBoxLayout()
         body.addWidget(self.plot, 1)
-        body.addWidget(legend_scroll)
+        body.addLayout(side)
         layout = QVBoxLayout(self)
         layout.setContentsMargins(0, 0, 0, 0)
         layout.addLayout(tools)
@@ -168,7 +179,7 @@ class LatentMap(QWidget):
         self._hover_row = -1
         self._refresh_points()
         self._highlight.setData(x=[], y=[])
-        self.view_box.autoRange()
+        self.view_box.autoRange(items=[self.scatter])  # frame the points, not stale overlays
 
     def set_visible_mask(self, mask: np.ndarray) -> None:
         """Show only the points where ``mask`` (N,) bool is true."""
@@ -205,16 +216,21 @@ class LatentMap(QWidget):
 
     def set_overlays(self, curves: Sequence[np.ndarray], colors: Sequence[object] | None = None) -> None:
         """Draw closed polylines ``curves`` (each (M, 2)), e.g. mode ellipses or hulls, in ``colors``."""
-        for item in self._overlays:
+        for item in self._overlays + self._halos:
             self.view_box.removeItem(item)
-        self._overlays = []
+        self._overlays, self._halos = [], []
         for i, curve in enumerate(curves):
             pts = np.asarray(curve, dtype=np.float64).reshape(-1, 2)
             closed = np.vstack([pts, pts[:1]])
             color = colors[i] if colors is not None else FOREGROUND
+            # a dark halo under the coloured line keeps it visible on points of the same colour
+            halo = pg.PlotCurveItem(closed[:, 0], closed[:, 1], pen=pg.mkPen("#000000", width=5))
             item = pg.PlotCurveItem(closed[:, 0], closed[:, 1], pen=pg.mkPen(qcolor(color), width=2))
+            halo.setZValue(4.5)
             item.setZValue(5)
+            self.view_box.addItem(halo)
             self.view_box.addItem(item)
+            self._halos.append(halo)
             self._overlays.append(item)
 
     def set_legend(
@@ -245,6 +261,28 @@ class LatentMap(QWidget):
         self._legend_layout.addStretch(1)
         self._legend_scroll.setVisible(bool(self._legend_checks))
         self._refresh_points()
+
+    def set_key(self, title: str, names: Sequence[str], colors: Sequence[object]) -> None:
+        """Show a colour key (``title``, one swatch per name) above the legend; an empty title hides it."""
+        if not title:
+            self.key_label.clear()
+            self.key_label.hide()
+            return
+        rows = [f"<b>{title}</b>"]
+        for name, color in zip(names, colors, strict=True):
+            rows.append(f'<span style="color:{qcolor(color).name()}">&#9632;</span> {name}')
+        self.key_label.setText("<br>".join(rows))
+        self.key_label.show()
+
+    def key_text(self) -> str:
+        """The colour key as plain text ("" when hidden)."""
+        if self.key_label.isHidden():
+            return ""
+        from PySide6.QtGui import QTextDocument
+
+        doc = QTextDocument()
+        doc.setHtml(self.key_label.text())
+        return doc.toPlainText()
 
     def legend_checkbox(self, index: int) -> QCheckBox:
         """The legend checkbox of entry ``index``."""

@@ -53,7 +53,10 @@ class ModePanel(QWidget):
         item.setLabel("bottom", "K")
         item.setLabel("left", "silhouette")
         item.getAxis("left").enableAutoSIPrefix(False)
+        item.getAxis("bottom").enableAutoSIPrefix(False)
         item.hideButtons()
+        item.setRange(xRange=(1, 12), yRange=(0, 1), padding=0.05)
+        item.enableAutoRange(False)
         self._curve = item.plot(pen=pg.mkPen(FOREGROUND, width=2), symbol="o", symbolSize=6)
         self._chosen = pg.ScatterPlotItem(size=14, symbol="star", brush=ACCENT, pen=pg.mkPen("k"))
         self._chosen_line = pg.InfiniteLine(angle=90, pen=pg.mkPen(ACCENT, style=Qt.PenStyle.DashLine))
@@ -83,6 +86,10 @@ class ModePanel(QWidget):
 
         layout = QVBoxLayout(self)
         layout.addWidget(self.title)
+        self.note = QLabel()
+        self.note.setWordWrap(True)
+        self.note.setStyleSheet("color: #a0a0a0;")
+        layout.addWidget(self.note)
         layout.addWidget(self.plot, 1)
         layout.addWidget(self._modes_box)
         layout.addLayout(form)
@@ -97,19 +104,36 @@ class ModePanel(QWidget):
         chosen_k: int,
         sizes: Sequence[int],
         weights: Sequence[float],
+        note: str = "",
     ) -> None:
-        """Show the silhouette ``scores`` per candidate ``ks``, the ``chosen_k`` and one row per mode."""
+        """Show the silhouette ``scores`` per candidate ``ks``, the ``chosen_k`` (starred where it was
+        scored) and one row per kept mode (``sizes``, ``weights``: fewer than K when modes were dropped);
+        ``note`` explains the choice in words."""
         if len(ks) != len(scores):
             raise ValueError(f"{len(ks)} candidate K values but {len(scores)} scores")
-        if len(sizes) != chosen_k or len(weights) != chosen_k:
-            raise ValueError(f"expected {chosen_k} sizes and weights, got {len(sizes)} and {len(weights)}")
-        self.title.setText(f"<b>{action_name}</b>: {chosen_k} mode{'s' if chosen_k != 1 else ''}")
-        self._curve.setData(np.asarray(ks, dtype=float), np.asarray(scores, dtype=float))
-        chosen = [float(s) for k, s in zip(ks, scores, strict=True) if k == chosen_k]
+        if len(sizes) != len(weights):
+            raise ValueError(f"{len(sizes)} sizes but {len(weights)} weights")
+        kept = len(sizes)
+        self.title.setText(f"<b>{action_name}</b>: {kept} mode{'s' if kept != 1 else ''}")
+        self.title.setToolTip(note)
+        self.note.setText(note)
+        x, y = np.asarray(ks, dtype=float), np.asarray(scores, dtype=float)
+        scored = np.isfinite(y)  # a K that could not be scored is not drawn
+        self._curve.setData(x[scored], y[scored])
+        chosen = [float(s) for k, s in zip(ks, scores, strict=True) if k == chosen_k and np.isfinite(s)]
         self._chosen.setData(x=[chosen_k] * len(chosen), y=chosen)
+        self._chosen_line.setVisible(bool(chosen))
         self._chosen_line.setValue(chosen_k)
+        plot = self.plot.getPlotItem()
+        if scored.any():
+            lo, hi = float(y[scored].min()), float(y[scored].max())
+            pad = max(0.05 * (hi - lo), 0.01)
+            plot.setRange(xRange=(x.min() - 0.5, x.max() + 0.5), yRange=(lo - pad, hi + pad), padding=0)
+        else:
+            plot.setRange(xRange=(1, 12), yRange=(0, 1), padding=0)
         self._rebuild_modes(sizes, weights)
-        self.mode_box.setMaximum(max(chosen_k - 1, 0))
+        self.mode_box.setMaximum(max(kept - 1, 0))
+        self._strategy_changed()
 
     def weights(self) -> np.ndarray:
         """The slider weights, (K,) float in [0, 1]."""
@@ -131,7 +155,6 @@ class ModePanel(QWidget):
             slider = QSlider(Qt.Orientation.Horizontal)
             slider.setRange(0, _SLIDER_STEPS)
             slider.setValue(round(float(np.clip(weight, 0.0, 1.0)) * _SLIDER_STEPS))
-            slider.setToolTip("Sampling weight of this mode")
             slider.valueChanged.connect(self._emit_weights)
             self._modes_layout.addWidget(swatch, mode, 0)
             self._modes_layout.addWidget(QLabel(f"{int(size)} clips"), mode, 1)
@@ -142,7 +165,15 @@ class ModePanel(QWidget):
         self.weightsChanged.emit(self.weights())
 
     def _strategy_changed(self) -> None:
-        self.mode_box.setEnabled(self.strategy_box.currentData() == "one_mode")
+        strategy = self.strategy_box.currentData()
+        self.mode_box.setEnabled(strategy == "one_mode")
+        for slider in self._sliders:  # the weights only matter when sampling by them
+            slider.setEnabled(strategy == "weights")
+            slider.setToolTip(
+                "Sampling weight of this mode"
+                if strategy == "weights"
+                else "Used by the 'Slider weights' strategy"
+            )
 
     def _request_sample(self) -> None:
         strategy = str(self.strategy_box.currentData())

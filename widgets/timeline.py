@@ -4,7 +4,16 @@ from __future__ import annotations
 
 from PySide6.QtCore import Qt, QTimer, Signal
 from PySide6.QtGui import QCloseEvent, QKeySequence, QShortcut
-from PySide6.QtWidgets import QCheckBox, QComboBox, QHBoxLayout, QLabel, QSlider, QToolButton, QWidget
+from PySide6.QtWidgets import (
+    QCheckBox,
+    QComboBox,
+    QHBoxLayout,
+    QLabel,
+    QSlider,
+    QStyle,
+    QToolButton,
+    QWidget,
+)
 
 SPEEDS: tuple[float, ...] = (0.25, 0.5, 1.0, 2.0, 4.0)
 
@@ -24,7 +33,14 @@ class Timeline(QWidget):
         self._timer.setTimerType(Qt.TimerType.PreciseTimer)
         self._timer.timeout.connect(self._tick)
 
-        self.play_button = QToolButton(text="▶", toolTip="Play / pause (Space)")
+        self.play_button = QToolButton(toolTip="Play / pause (Space)")
+        self._icons = {
+            playing: self.style().standardIcon(
+                QStyle.StandardPixmap.SP_MediaPause if playing else QStyle.StandardPixmap.SP_MediaPlay
+            )
+            for playing in (False, True)
+        }
+        self.play_button.setIcon(self._icons[False])
         self.play_button.setCheckable(True)
         self.play_button.toggled.connect(self._set_playing)
         self.slider = QSlider(Qt.Orientation.Horizontal)
@@ -115,7 +131,7 @@ class Timeline(QWidget):
         self._timer.setInterval(max(1, round(1000.0 / (self._fps * self._speed))))
 
     def _set_playing(self, playing: bool) -> None:
-        self.play_button.setText("⏸" if playing else "▶")
+        self.play_button.setIcon(self._icons[playing])
         if playing and self.frame() >= self._length - 1 and self._length > 1:
             self.set_frame(0)
         if playing:

@@ -134,6 +134,20 @@ class SkeletonViewport(QWidget):
         self._follow_anchor = None
         self._apply_layout()
 
+    def set_colors(self, rgb: np.ndarray) -> None:
+        """Colour each skeleton: ``rgb`` (n, 3) uint8, one row per skeleton."""
+        rgb = np.asarray(rgb, dtype=np.uint8).reshape(-1, 3)
+        if self._mesh is None or len(rgb) != self._n:
+            raise ValueError(f"need {self._n} colours (call set_skeletons first), got {len(rgb)}")
+        self._mesh.point_data["rgb"] = np.repeat(rgb, len(self._parents), axis=0)
+        self._schedule_render()
+
+    def colors(self) -> np.ndarray:
+        """(n, 3) uint8 colour of each skeleton."""
+        if self._mesh is None:
+            return np.zeros((0, 3), dtype=np.uint8)
+        return np.asarray(self._mesh.point_data["rgb"]).reshape(self._n, -1, 3)[:, 0].copy()
+
     def set_poses(self, poses: np.ndarray) -> None:
         """Move the skeletons to joint positions ``poses`` (n, J, 3) metres, in place (no rebuild)."""
         poses = np.asarray(poses, dtype=np.float32)

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from widgets._colors import brushes_for, palette_rgb, qcolor, to_rgba8
+from widgets._colors import brushes_for, palette_rgb, qcolor, shades, to_rgba8
 
 
 def test_to_rgba8_accepts_float_and_rgb() -> None:
@@ -23,9 +23,16 @@ def test_brushes_shared_per_colour() -> None:
     assert brushes[0] is brushes[2]
 
 
-def test_palette_cycles_and_qcolor_forms() -> None:
-    assert palette_rgb(12).shape == (12, 3)
-    assert palette_rgb(12)[10].tolist() == palette_rgb(1)[0].tolist()
+def test_palette_gives_every_category_its_own_colour_and_qcolor_forms() -> None:
+    colors = palette_rgb(30)
+    assert colors.shape == (30, 3)
+    assert len({tuple(c) for c in colors.tolist()}) == 30
+    assert palette_rgb(17)[:10].tolist() == palette_rgb(10).tolist()
+    d = np.abs(colors[:, None].astype(int) - colors[None].astype(int)).sum(-1)
+    np.fill_diagonal(d, 999)
+    assert d[:17, :17].min() > 30, "the first 17 colours are told apart"
+    ramp = shades(colors[0], 4)
+    assert ramp.shape == (4, 3) and len({tuple(c) for c in ramp.tolist()}) == 4
     assert qcolor((1.0, 0.0, 0.0)).getRgb() == (255, 0, 0, 255)
     assert qcolor((0, 255, 0, 10)).getRgb() == (0, 255, 0, 10)
     assert qcolor("#0000ff").getRgb() == (0, 0, 255, 255)

@@ -25,7 +25,16 @@ def test_plot_marks_chosen_k(panel: ModePanel) -> None:
     assert "3 modes" in panel.title.text()
 
 
+def test_sliders_work_only_under_slider_weights(qtbot, panel: ModePanel) -> None:
+    assert not panel.slider(0).isEnabled()
+    qtbot.keyClick(panel.slider(2), Qt.Key.Key_End)
+    np.testing.assert_allclose(panel.weights(), [0.5, 0.3, 0.2])
+    panel.strategy_box.setCurrentIndex(panel.strategy_box.findData("weights"))
+    assert all(panel.slider(k).isEnabled() for k in range(3))
+
+
 def test_slider_emits_weights(qtbot, panel: ModePanel) -> None:
+    panel.strategy_box.setCurrentIndex(panel.strategy_box.findData("weights"))
     np.testing.assert_allclose(panel.weights(), [0.5, 0.3, 0.2])
     with qtbot.waitSignal(panel.weightsChanged, timeout=1000) as blocker:
         panel.slider(2).setFocus()
@@ -50,4 +59,17 @@ def test_new_action_rebuilds_sliders_and_rejects_bad_sizes(panel: ModePanel) -> 
     panel.set_action_modes("run", [2, 3], [0.7, 0.5], 2, [30, 30], [1.0, 1.0])
     assert len(panel.weights()) == 2
     with pytest.raises(ValueError, match="sizes"):
-        panel.set_action_modes("run", [2, 3], [0.7, 0.5], 2, [30], [1.0])
+        panel.set_action_modes("run", [2, 3], [0.7, 0.5], 2, [30], [1.0, 0.5])
+
+
+def test_star_sits_on_the_chosen_k_and_the_kept_modes_are_listed(panel: ModePanel) -> None:
+    note = "K = 4 chosen; 2 kept, 2 dropped for having too few clips"
+    panel.set_action_modes("raise", [3, 4, 5], [0.3, 0.35, 0.5], 4, [40, 30], [1.0, 0.8], note)
+    assert panel._chosen.data["x"].tolist() == [4] and panel._chosen.data["y"].tolist() == [0.35]
+    assert "2 modes" in panel.title.text() and panel.note.text() == note
+    assert len(panel.weights()) == 2 and panel.mode_box.maximum() == 1
+    panel.set_action_modes("turn", [3, 4], [float("nan"), float("nan")], 1, [12], [1.0], "nothing scored")
+    assert panel._chosen.data["x"].tolist() == [] and not panel._chosen_line.isVisible()
+    assert "1 mode" in panel.title.text()
+    axis = panel.plot.getPlotItem().getAxis("bottom")
+    assert axis.autoSIPrefixScale == 1.0
