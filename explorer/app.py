@@ -38,6 +38,15 @@ def build_parser() -> argparse.ArgumentParser:
         "--after", type=float, default=3.0, metavar="SECONDS", help="wait this long before --screenshot"
     )
     parser.add_argument("--projection", choices=("pca", "tsne", "umap"), default="pca", help="initial map")
+    parser.add_argument(
+        "--select", type=int, metavar="INDEX", help="click bank code INDEX once the model is loaded"
+    )
+    parser.add_argument(
+        "--color-by",
+        default="action",
+        metavar="WHAT",
+        help="colour the map by action, mode, 'motion energy' or a metadata key (meta:KEY, e.g. meta:style)",
+    )
     parser.add_argument("--settings", type=Path, help="settings file (default: the user's Qt settings)")
     parser.add_argument("-v", "--verbose", action="store_true", help="log details")
     return parser
@@ -80,7 +89,12 @@ def open_settings(path: Path | None) -> QSettings:
 
 
 def create_explorer(
-    model: Path | None, data: Path | None, settings: QSettings, projection: str = "pca"
+    model: Path | None,
+    data: Path | None,
+    settings: QSettings,
+    projection: str = "pca",
+    color_by: str = "action",
+    select: int | None = None,
 ) -> Explorer:
     """Build the window and controller, paint ``model``'s (or the bundled one's) map, then load it.
 
@@ -95,6 +109,9 @@ def create_explorer(
     window = MainWindow(settings)
     controller = Controller(window)
     controller.state.projection = projection
+    controller.state.color_by = color_by
+    if select is not None:
+        controller.modelLoaded.connect(lambda _m: controller.select_index(select))
     explorer = Explorer(window, controller)
     target = model if model is not None else DEFAULT_MODEL
     if model is None and not DEFAULT_MODEL.is_dir():
@@ -121,7 +138,13 @@ def take_screenshot(explorer: Explorer, path: Path) -> None:
 
     window = explorer.window
     window.viewport.render_now()
-    meta = {"model": str(explorer.controller.state.model.path) if explorer.controller.state.model else None}
+    state = explorer.controller.state
+    meta = {
+        "model": str(state.model.path) if state.model else None,
+        "projection": state.projection,
+        "color_by": state.color_by,
+        "selection": list(state.selection),
+    }
     save_png(window.grab().toImage(), path, meta)
 
 
@@ -132,9 +155,16 @@ def _schedule_screenshot(
     deadline = time.monotonic() + after + SCREENSHOT_IDLE_TIMEOUT_S
 
     def attempt() -> None:
-        busy = explorer.waiting or explorer.controller.tasks.active
+        c = explorer.controller
+        busy = explorer.waiting or c.tasks.active or (c.state.model is not None and c.decoding())
         if busy and time.monotonic() < deadline:
             QTimer.singleShot(200, attempt)
+            return
+        if c.load_error or c.state.model is None:
+            why = c.load_error or "no model was loaded"
+            print(f"odmo-explorer: error: {why}; no screenshot written", file=sys.stderr)
+            codes.append(2)
+            app.quit()
             return
         try:
             take_screenshot(explorer, path)
@@ -154,7 +184,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     app = QApplication.instance() or QApplication(sys.argv[:1])
     app.setApplicationName("ODMO Explorer")
     app.setOrganizationName("ODMO")
-    explorer = create_explorer(args.model, args.data, open_settings(args.settings), args.projection)
+    explorer = create_explorer(
+        args.model, args.data, open_settings(args.settings), args.projection, args.color_by, args.select
+    )
     explorer.window.show()
     codes: list[int] = []
     if args.screenshot is not None:

@@ -85,6 +85,7 @@ class Controller(QObject):
         self._rig: tuple[bytes, int, str] | None = None
         self._model_task = None
         self.load_error = ""  # why the last model failed to load ("" when it did not)
+        self._shown_request = 0
         self._preview: BankPreview | None = None
         self._drawn: tuple[np.ndarray, np.ndarray] | None = None  # (embedding, colours) on the map
         self._tips: tuple[object, list[str]] | None = None  # (bank, its tooltips)
@@ -144,7 +145,7 @@ class Controller(QObject):
         w.cancel_button.clicked.connect(self.tasks.cancel_all)
 
         self.decoder.finished.connect(self._decoded)
-        self.decoder.failed.connect(lambda _r, exc: self.report_error("Decoding failed", exc))
+        self.decoder.failed.connect(self._decode_failed)
         self.tasks.started.connect(self._task_started)
         self.tasks.ended.connect(self._task_ended)
 
@@ -202,6 +203,10 @@ class Controller(QObject):
 
     def _run_task(self, title: str, fn: Callable[[Progress, Cancel], Any], on_done: Callable[[Any], None]):
         return self.tasks.run(title, fn, on_done, lambda exc: self.report_error(title, exc))
+
+    def _decode_failed(self, request: int, exc: BaseException) -> None:
+        self._shown_request = max(self._shown_request, request)
+        self.report_error("Decoding failed", exc)
 
     def _task_started(self, task: Any) -> None:
         self.state.busy = task.title
@@ -366,6 +371,8 @@ class Controller(QObject):
             self.state.color_by = "action"
             index = 0
         combo.setCurrentIndex(index)
+        if self.state.color_by == "motion energy" and self._energy is None:
+            self._compute_energy()
 
     # -- map -----------------------------------------------------------------------------------------
 
@@ -550,6 +557,21 @@ class Controller(QObject):
         """(code, action, end) of bank code ``index`` (copies: the bank's arrays are read-only)."""
         bank = self.bank
         return bank.codes[index].copy(), int(bank.actions[index]), bank.ends[index].copy()
+
+    def select_index(self, index: int) -> None:
+        """Click bank code ``index`` as the map would (``--select``); an index out of range is reported."""
+        if self.state.model is None:
+            return
+        if not 0 <= index < len(self.bank.codes):
+            self.report_error(
+                "Cannot select", f"bank index {index} is out of range 0..{len(self.bank.codes) - 1}"
+            )
+            return
+        self.click_point(index)
+
+    def decoding(self) -> bool:
+        """True while a decode request has not been shown yet."""
+        return self.decoder.newest > self._shown_request
 
     def click_point(self, index: int) -> None:
         """Select bank code ``index``, decode it (with the real clip beside it when data is loaded), play."""
@@ -904,7 +926,8 @@ class Controller(QObject):
 
     # -- showing motions -----------------------------------------------------------------------------
 
-    def _decoded(self, _request: int, items: tuple[Decoded, ...]) -> None:
+    def _decoded(self, request: int, items: tuple[Decoded, ...]) -> None:
+        self._shown_request = max(self._shown_request, request)
         self.state.shown = items
 
     def _show_motions(self, shown: tuple[Decoded, ...]) -> None:

@@ -122,3 +122,57 @@ def test_screenshot_entry_point_writes_png(tiny_model_dir: Path, tmp_path: Path)
     assert image.width() >= 800 and image.height() >= 500
     assert image.text("model") == str(tiny_model_dir)
     assert settings.is_file()
+
+
+def _run_app(*args: str) -> subprocess.CompletedProcess:
+    command = [sys.executable, "-m", "explorer.app", *args]
+    return subprocess.run(command, capture_output=True, text=True, timeout=300, check=False)
+
+
+def test_screenshot_selects_and_colours_for_scripted_figures(tiny_model_dir: Path, tmp_path: Path) -> None:
+    shot = tmp_path / "figure.png"
+    done = _run_app(
+        "--model", str(tiny_model_dir), "--screenshot", str(shot), "--after", "0.5",
+        "--settings", str(tmp_path / "s.ini"), "--select", "3", "--color-by", "meta:style",
+    )  # fmt: skip
+    assert done.returncode == 0, done.stderr
+    image = QImage(str(shot))
+    assert json.loads(image.text("selection")) == [3]
+    assert image.text("color_by") == "meta:style" and image.text("projection") == "pca"
+
+
+def test_screenshot_of_a_broken_model_exits_non_zero_and_writes_nothing(tmp_path: Path) -> None:
+    broken = tmp_path / "broken"
+    broken.mkdir()
+    (broken / "model.json").write_text("{ not json")
+    shot = tmp_path / "shot.png"
+    done = _run_app("--model", str(broken), "--screenshot", str(shot), "--after", "0.2", "--settings",
+                    str(tmp_path / "s.ini"))  # fmt: skip
+    assert done.returncode != 0
+    assert "broken" in done.stderr and "no screenshot" in done.stderr
+    assert "Traceback" not in done.stderr
+    assert not shot.exists() and not list(tmp_path.glob("*.tmp*"))
+
+
+def test_a_damaged_latent_bank_gives_a_message_and_the_app_keeps_running(
+    qtbot, explorer: Opened, tiny_model_dir: Path, tmp_path: Path
+) -> None:
+    import shutil
+
+    c = explorer.controller
+    damaged = tmp_path / "damaged"
+    shutil.copytree(tiny_model_dir, damaged)
+    bank = np.load(damaged / "latent_bank.npz")
+    arrays = {k: bank[k] for k in bank.files}
+    arrays["codes"] = arrays["codes"][:5]  # fewer codes than actions, sources, ends
+    with open(damaged / "latent_bank.npz", "wb") as handle:
+        np.savez(handle, **arrays)
+    before = c.state.model
+    with qtbot.waitSignal(c.errorOccurred, timeout=30_000) as blocker:
+        c.open_model(damaged)
+    assert "damaged" in blocker.args[0] or "bank" in blocker.args[0]
+    assert close_message_boxes()
+    qtbot.wait(100)
+    assert c.state.model is before and explorer.window.isVisible()
+    assert len(explorer.window.latent_map.visible_rows()) == len(c.bank.codes)
+    _show_bank_code(qtbot, explorer, 1)
