@@ -97,6 +97,12 @@ class Controller(QObject):
         self._live_marker: np.ndarray | None = None
         self._live_details = False
         self._connect()
+        from explorer.encoding import ClipEncoder
+        from explorer.finding import Finder
+
+        self.finder = Finder(self)
+        self.encoder = ClipEncoder(self)
+        self.state.events.embedding.connect(lambda _e: self.encoder.show())
 
     # -- wiring --------------------------------------------------------------------------------------
 

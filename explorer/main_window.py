@@ -26,6 +26,7 @@ from PySide6.QtWidgets import (
 )
 
 from explorer.state import COLOR_BY, PROJECTIONS
+from widgets.find_panel import FindPanel
 from widgets.latent_map import LatentMap
 from widgets.mode_panel import ModePanel
 from widgets.timeline import Timeline
@@ -36,7 +37,7 @@ if TYPE_CHECKING:
 
 SETTINGS_GEOMETRY = "window/geometry"
 SETTINGS_STATE = "window/state"
-_LAYOUT_VERSION = 1
+_LAYOUT_VERSION = 2  # 2: the Find panel
 PROJECTION_LABELS = {"pca": "PCA", "tsne": "t-SNE", "umap": "UMAP"}
 
 
@@ -65,6 +66,7 @@ class MainWindow(QMainWindow):
         self.timeline = Timeline()
         self.mode_panel = ModePanel()
         self.trajectory = TrajectoryCanvas()
+        self.find_panel = FindPanel()
         self.setCentralWidget(self.latent_map)
 
         self.viewport_dock = self._dock(
@@ -75,6 +77,9 @@ class MainWindow(QMainWindow):
         self.trajectory_dock = self._dock(
             "Trajectory (top view)", "dock_trajectory", self.trajectory, Qt.LeftDockWidgetArea
         )
+        self.find_dock = self._dock("Find", "dock_find", self.find_panel, Qt.LeftDockWidgetArea)
+        self.tabifyDockWidget(self.mode_dock, self.find_dock)
+        self.mode_dock.raise_()
         self.splitDockWidget(self.mode_dock, self.trajectory_dock, Qt.Vertical)
         self.resizeDocks([self.viewport_dock], [560], Qt.Horizontal)
         self.resizeDocks([self.mode_dock], [330], Qt.Horizontal)
@@ -99,6 +104,10 @@ class MainWindow(QMainWindow):
             self._viewport_placeholder.deleteLater()
             self.viewportCreated.emit()
         return self._viewport
+
+    def docks(self) -> tuple[QDockWidget, ...]:
+        """Every dock panel of the window."""
+        return (self.viewport_dock, self.timeline_dock, self.mode_dock, self.find_dock, self.trajectory_dock)
 
     def has_viewport(self) -> bool:
         """True once the 3-D viewport exists."""
@@ -160,12 +169,20 @@ class MainWindow(QMainWindow):
         self.ghosts_spin.setValue(4)
         self.ghosts_spin.setToolTip("Faint poses drawn along a single motion (0: none)")
         bar.addWidget(self.ghosts_spin)
+        bar.addWidget(QLabel(" Encode stride "))
+        self.stride_spin = QSpinBox()
+        self.stride_spin.setRange(1, 600)
+        self.stride_spin.setValue(30)
+        self.stride_spin.setSuffix(" frames")
+        self.stride_spin.setToolTip("Frames between the windows a long clip is encoded as (one code each)")
+        bar.addWidget(self.stride_spin)
 
     def _build_menus(self) -> None:
         file_menu = self.menuBar().addMenu("&File")
         self.open_model_action = file_menu.addAction("Open &model folder…")
         self.open_model_action.setShortcut(QKeySequence.Open)
         self.open_data_action = file_menu.addAction("Open &dataset folder…")
+        self.encode_action = file_menu.addAction("E&ncode clips… (or drop files on the map)")
         file_menu.addSeparator()
         self.export_motion_action = file_menu.addAction("&Export shown motion(s) (BVH / NPZ)…")
         self.export_motion_action.setShortcut(QKeySequence("Ctrl+E"))
@@ -186,7 +203,13 @@ class MainWindow(QMainWindow):
         self.clear_selection_action.setShortcut(QKeySequence(Qt.Key_Escape))
 
         view = self.menuBar().addMenu("&View")
-        for dock in (self.viewport_dock, self.timeline_dock, self.mode_dock, self.trajectory_dock):
+        for dock in (
+            self.viewport_dock,
+            self.timeline_dock,
+            self.mode_dock,
+            self.find_dock,
+            self.trajectory_dock,
+        ):
             view.addAction(dock.toggleViewAction())
         view.addSeparator()
         self.reset_camera_action = view.addAction("Reset &camera")
@@ -276,7 +299,13 @@ class MainWindow(QMainWindow):
     def reset_layout(self) -> None:
         """Put every panel back where it starts."""
         self.restoreState(self._default_state, _LAYOUT_VERSION)
-        for dock in (self.viewport_dock, self.timeline_dock, self.mode_dock, self.trajectory_dock):
+        for dock in (
+            self.viewport_dock,
+            self.timeline_dock,
+            self.mode_dock,
+            self.find_dock,
+            self.trajectory_dock,
+        ):
             dock.show()
 
     def closeEvent(self, event: QCloseEvent) -> None:  # noqa: N802

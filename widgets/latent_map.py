@@ -7,7 +7,7 @@ from typing import Literal
 
 import numpy as np
 import pyqtgraph as pg
-from PySide6.QtCore import QPointF, Qt, Signal
+from PySide6.QtCore import QEvent, QObject, QPointF, Qt, Signal
 from PySide6.QtGui import QPixmap
 from PySide6.QtWidgets import (
     QButtonGroup,
@@ -63,6 +63,29 @@ class GestureViewBox(pg.ViewBox):
         self._on_hover(ev)
 
 
+class _FileDrops(QObject):
+    """Event filter on the plot's viewport: accepts dragged local files and reports their paths."""
+
+    def __init__(self, on_drop: Callable[[list[str]], None], parent: QObject) -> None:
+        super().__init__(parent)
+        self._on_drop = on_drop
+
+    def eventFilter(self, watched: QObject, event: QEvent) -> bool:  # noqa: N802
+        """Accept drags that carry local files; on drop hand their paths over."""
+        kind = event.type()
+        if kind in (QEvent.Type.DragEnter, QEvent.Type.DragMove, QEvent.Type.Drop):
+            urls = (
+                [u for u in event.mimeData().urls() if u.isLocalFile()] if event.mimeData().hasUrls() else []
+            )
+            if not urls:
+                return False
+            event.acceptProposedAction()
+            if kind == QEvent.Type.Drop:
+                self._on_drop([u.toLocalFile() for u in urls])
+            return True
+        return False
+
+
 class LatentMap(QWidget):
     """A 2-D map of points (one scatter item) that reports clicks, drags, lassos and hovers.
 
@@ -78,6 +101,7 @@ class LatentMap(QWidget):
     lassoFinished = Signal(object)  # noqa: N815
     hovered = Signal(int)
     legendToggled = Signal(int, bool)  # noqa: N815
+    filesDropped = Signal(list)  # noqa: N815
 
     def __init__(
         self, parent: QWidget | None = None, *, point_size: float = 6.0, pick_tolerance_px: float = 8.0
@@ -101,6 +125,9 @@ class LatentMap(QWidget):
         self.view_box = GestureViewBox(self._handle_click, self._handle_drag, self._handle_hover)
         self.plot = pg.PlotWidget(viewBox=self.view_box)
         configure_plot(self.plot)
+        self.plot.viewport().setAcceptDrops(True)
+        self._drops = _FileDrops(self.filesDropped.emit, self)
+        self.plot.viewport().installEventFilter(self._drops)
         self.view_box.setAspectLocked(True)  # one map unit is as long across as up
         self.scatter = PassiveScatter(pxMode=True, size=point_size, pen=None, symbol="o")
         self._highlight = PassiveScatter(
@@ -110,6 +137,7 @@ class LatentMap(QWidget):
         self._marker = PassiveScatter(pxMode=True, size=20, pen=pg.mkPen("k"), brush=SELECTION, symbol="star")
         self._lasso_curve = pg.PlotCurveItem(pen=pg.mkPen(SELECTION, width=1.5, style=Qt.PenStyle.DashLine))
         self._overlays: list[pg.PlotCurveItem] = []
+        self._paths: list[pg.PlotCurveItem] = []
         self._halos: list[pg.PlotCurveItem] = []
         layers = (self.scatter, self._highlight, self._extra, self._marker, self._lasso_curve)
         for z, item in enumerate(layers):
@@ -232,6 +260,32 @@ class LatentMap(QWidget):
             self.view_box.addItem(item)
             self._halos.append(halo)
             self._overlays.append(item)
+
+    def set_paths(self, curves: Sequence[np.ndarray], colors: Sequence[object] | None = None) -> None:
+        """Draw open polylines ``curves`` (each (M, 2)), e.g. a long clip's windows in order; [] clears."""
+        for item in self._paths:
+            self.view_box.removeItem(item)
+        self._paths = []
+        for i, curve in enumerate(curves):
+            pts = np.asarray(curve, dtype=np.float64).reshape(-1, 2)
+            color = colors[i] if colors is not None else SELECTION
+            item = pg.PlotCurveItem(pts[:, 0], pts[:, 1], pen=pg.mkPen(qcolor(color), width=1.5))
+            item.setZValue(11.5)
+            self.view_box.addItem(item)
+            self._paths.append(item)
+
+    def paths(self) -> list[np.ndarray]:
+        """The polylines drawn by ``set_paths``, each (M, 2)."""
+        return [np.stack([np.asarray(a) for a in item.getData()], axis=1) for item in self._paths]
+
+    def extra_points(self) -> np.ndarray:
+        """(K, 2) positions of the extra points drawn."""
+        x, y = self._extra.getData()
+        return (
+            np.stack([np.asarray(x, float), np.asarray(y, float)], axis=1)
+            if x is not None
+            else np.zeros((0, 2))
+        )
 
     def set_legend(
         self, names: Sequence[str], colors: Sequence[object], groups: np.ndarray | None = None
