@@ -39,6 +39,13 @@ def main(argv: Sequence[str] | None = None) -> int:
     except (OSError, ValueError) as exc:
         print(f"odmo {args.command}: error: {exc}", file=sys.stderr)
         return 1
+    except MemoryError:
+        print(
+            f"odmo {args.command}: error: out of memory (an input or a requested size is too large "
+            "for this machine)",
+            file=sys.stderr,
+        )
+        return 1
     except KeyboardInterrupt:
         print(f"odmo {args.command}: interrupted", file=sys.stderr)
         return 130

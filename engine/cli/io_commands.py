@@ -18,6 +18,8 @@ def register(subparsers: Any) -> None:
     """Add the ``info`` and ``convert`` sub-commands."""
     info = subparsers.add_parser("info", help="describe a motion file or a dataset folder")
     info.add_argument("path", type=Path, help="a .bvh, .npz, .npy or .pkl file, or a dataset folder")
+    info.add_argument("--pattern", help="for a folder: regex, named group 'action' labels file names")
+    info.add_argument("--labels", type=Path, help="for a folder: CSV/JSON label sidecar (file,action[,...])")
     _add_reading_options(info)
     info.set_defaults(func=_info)
 
@@ -90,7 +92,7 @@ def _up_axis_line(motion: Motion) -> str:
 def _info(args: argparse.Namespace) -> int:
     """Print frames, fps, duration, joints, units and label of a file, or a folder's summary."""
     if args.path.is_dir():
-        return _folder_info(args.path, args.up_axis)
+        return _folder_info(args)
     clips = _read_clips(args.path, args)
     if len(clips) > 1:
         counts = Counter(c.action for c in clips)
@@ -112,7 +114,7 @@ def _info(args: argparse.Namespace) -> int:
     return 0
 
 
-def _folder_info(path: Path, up_axis: str) -> int:
+def _folder_info(args: argparse.Namespace) -> int:
     """Print a dataset folder's clips per action, total frames and fingerprint."""
     from tqdm import tqdm
 
@@ -124,7 +126,9 @@ def _folder_info(path: Path, up_axis: str) -> int:
             bar.total = total
             bar.update(done - bar.n)
 
-        data = load_folder(path, progress=progress, up_axis=up_axis)
+        data = load_folder(
+            args.path, pattern=args.pattern, labels=args.labels, progress=progress, up_axis=args.up_axis
+        )
     counts = Counter(c.action for c in data.clips)
     frames = sum(c.n_frames for c in data.clips)
     print(f"folder:      {data.root} ({data.layout} layout)")

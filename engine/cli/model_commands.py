@@ -14,7 +14,9 @@ import numpy as np
 from tqdm import tqdm
 
 from engine.cli.options import add_up_axis
-from engine.errors import ConfigError, DataError
+from engine.errors import ConfigError, DataError, ModelFormatError
+from engine.fileio import folder_lock
+from engine.limits import check_count
 
 if TYPE_CHECKING:
     from engine.generate import Sample
@@ -44,7 +46,16 @@ def output_paths(out: Path, n: int, stem: str) -> list[Path]:
 
 
 def _write(samples: list[Sample], out: Path, stem: str) -> None:
-    for s, path in zip(samples, output_paths(out, len(samples), stem), strict=True):
+    paths = output_paths(out, len(samples), stem)
+    if len(paths) == 1:
+        _write_all(samples, paths)
+        return
+    with folder_lock(paths[0].parent, "writing motions"):
+        _write_all(samples, paths)
+
+
+def _write_all(samples: list[Sample], paths: list[Path]) -> None:
+    for s, path in zip(samples, paths, strict=True):
         s.motion.save(path)
         mode = "" if s.mode < 0 else f" mode {s.mode}"
         print(f"{path}{mode}")
@@ -73,7 +84,11 @@ def endpoint_code(loaded: LoadedModel, text: str, action: int) -> np.ndarray:
 
 
 def _end(args: argparse.Namespace) -> np.ndarray | None:
-    return None if args.end is None else np.asarray(args.end, dtype=np.float32)
+    if args.end is None:
+        return None
+    if not np.all(np.isfinite(args.end)) or np.max(np.abs(args.end)) > 1e3:
+        raise ConfigError(f"--end must be two finite numbers of metres (at most 1000), got {args.end}")
+    return np.asarray(args.end, dtype=np.float32)
 
 
 class TqdmProgress:
@@ -127,6 +142,13 @@ def _dataset(args: argparse.Namespace) -> Dataset:
 
 
 def _cmd_train(args: argparse.Namespace) -> int:
+    if args.out.exists() and not args.out.is_dir():
+        raise ConfigError(f"{args.out}: exists and is not a folder; --out names the model folder to write")
+    with folder_lock(args.out, "training a model"):
+        return _train_locked(args)
+
+
+def _train_locked(args: argparse.Namespace) -> int:
     from engine.model.a2m import A2mConfig
     from engine.model.config import OdmoConfig
     from engine.train.a2m_loop import train_a2m
@@ -165,6 +187,13 @@ def _cmd_train(args: argparse.Namespace) -> int:
 
 
 def _cmd_bank(args: argparse.Namespace) -> int:
+    if not args.model.is_dir():
+        raise ModelFormatError(f"{args.model}: not a model folder")
+    with folder_lock(args.model, "writing the model folder"):
+        return _bank_locked(args)
+
+
+def _bank_locked(args: argparse.Namespace) -> int:
     from engine.generate import encode_clips
     from engine.latent.bank import build_bank
     from engine.modelio import load_model, save_bank
@@ -205,6 +234,7 @@ def _cmd_sample(args: argparse.Namespace) -> int:
     from engine.generate import sample
     from engine.modelio import load_model
 
+    check_count("--n", args.n)
     loaded = load_model(args.model)
     strategy = "mode" if args.mode is not None else args.strategy
     samples = sample(
@@ -218,6 +248,7 @@ def _cmd_interpolate(args: argparse.Namespace) -> int:
     from engine.generate import action_index, interpolate
     from engine.modelio import load_model
 
+    check_count("--steps", args.steps)
     loaded = load_model(args.model)
     action = action_index(loaded, args.action)
     a, b = (endpoint_code(loaded, text, action) for text in (args.from_, args.to))

@@ -5,8 +5,6 @@ from __future__ import annotations
 import io
 import json
 import logging
-import zipfile
-import zlib
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -20,6 +18,7 @@ from engine.latent.geometry import NeighbourBlend
 from engine.latent.modes import ModeModel, discover_modes
 from engine.latent.projection import Projection, make_projection
 from engine.limits import check_file_size
+from engine.npyio import load_npz
 
 log = logging.getLogger(__name__)
 
@@ -121,9 +120,8 @@ class LatentBank:
     def from_bytes(cls, data: bytes, path: str | Path) -> LatentBank:
         """Parse and validate the bytes of a bank file; errors name ``path``."""
         try:
-            with np.load(io.BytesIO(data), allow_pickle=False) as npz:
-                arrays = {key: npz[key] for key in npz.files}
-        except (OSError, ValueError, EOFError, zipfile.BadZipFile, KeyError, zlib.error) as exc:
+            arrays = load_npz(data)
+        except (OSError, ValueError) as exc:
             raise ModelFormatError(f"{path}: not a readable latent bank ({exc})") from exc
         try:
             return cls._from_arrays(arrays)

@@ -46,6 +46,7 @@ from engine.limits import check_file_size
 from engine.motion.axes import check_up_axis
 from engine.motion.motion import Motion
 from engine.motion.skeleton import Skeleton
+from engine.npyio import load_npz
 
 log = logging.getLogger(__name__)
 
@@ -209,7 +210,8 @@ def _generic_entries(
 
     files = sorted(p for p in root.iterdir() if p.suffix.lower() in _MOTION_SUFFIXES and p.is_file())
     if labels is not None:
-        table = _read_sidecar(Path(labels) if Path(labels).is_absolute() else root / labels)
+        labels = Path(labels).expanduser()
+        table = _read_sidecar(labels if labels.is_absolute() or labels.exists() else root / labels)
         found = [(p, table.get(p.name) or table.get(p.stem)) for p in files]
     elif pattern is not None:
         try:
@@ -248,9 +250,13 @@ def _match_label(regex: re.Pattern[str], name: str) -> dict[str, str] | None:
 def _read_sidecar(path: Path) -> dict[str, dict[str, Any]]:
     """File name -> label fields from a CSV (header ``file,action,...``) or JSON sidecar."""
     try:
-        text = path.read_text(encoding="utf-8")
+        check_file_size(path, "label file")
+        text = path.read_text(encoding="utf-8-sig")
     except OSError as exc:
-        raise DataError(f"{path}: cannot read labels ({exc})") from None
+        raise DataError(f"{path}: cannot read labels ({exc.strerror or exc})") from None
+    except UnicodeDecodeError as exc:
+        line = exc.object.count(b"\n", 0, exc.start) + 1
+        raise DataError(f"{path}:{line}: labels are not UTF-8 text") from None
     if path.suffix.lower() == ".json":
         try:
             raw = json.loads(text)
@@ -265,7 +271,13 @@ def _read_sidecar(path: Path) -> dict[str, dict[str, Any]]:
                 raise DataError(f"{path}: entry {name!r} has no string 'action'")
             table[name] = fields
         return table
-    rows = list(csv.reader(text.splitlines()))
+    if "\x00" in text:
+        line = text.count("\n", 0, text.index("\x00")) + 1
+        raise DataError(f"{path}:{line}: binary data in a label file")
+    try:
+        rows = list(csv.reader(text.splitlines()))
+    except csv.Error as exc:
+        raise DataError(f"{path}: not a CSV label file ({exc})") from None
     if not rows or rows[0][:2] != ["file", "action"]:
         raise DataError(f"{path}:1: the CSV header must start with 'file,action'")
     header = rows[0]
@@ -407,10 +419,7 @@ def _entry_check(joints: np.ndarray, fps: float, skeleton: Skeleton) -> int:
 def _read_cache(path: Path) -> tuple[dict[str, _Parsed], int]:
     """Clips of a cache file written by :func:`_write_cache` keyed by content hash, and how many entries
     failed their check (left out)."""
-    check_file_size(path, "dataset cache")
-    # Our own handle: np.load leaves its file open when the archive is corrupt.
-    with path.open("rb") as handle, np.load(handle, allow_pickle=False) as archive:
-        data = {key: archive[key] for key in archive.files}
+    data = load_npz(path)
     if int(data["version"]) != CACHE_VERSION:
         return {}, 0
     names = tuple(data["names"].tolist())

@@ -12,6 +12,9 @@ import numpy as np
 from engine.errors import ConfigError
 from engine.motion.skeleton import Skeleton
 
+#: Largest joint coordinate accepted, in metres: beyond it float32 arithmetic (IK, FK) loses all meaning.
+MAX_COORDINATE_M = 1e5
+
 
 @dataclass(eq=False)
 class Motion:
@@ -48,8 +51,14 @@ class Motion:
             raise ConfigError(
                 f"joints have {self.joints.shape[1]} joints, skeleton has {self.skeleton.n_joints}"
             )
-        if not np.all(np.isfinite(self.joints)):
-            raise ConfigError("joint positions must be finite")
+        reach = float(np.max(np.abs(self.joints)))  # NaN when any value is NaN
+        if not reach <= MAX_COORDINATE_M:
+            if not np.all(np.isfinite(self.joints)):
+                raise ConfigError("joint positions must be finite")
+            raise ConfigError(
+                f"joint positions reach {reach:.3g} m, beyond {MAX_COORDINATE_M:g} m: not motion in metres "
+                "(wrong units or a damaged file?)"
+            )
         self.fps = float(self.fps)
         if not (0 < self.fps <= 10000):
             raise ConfigError(f"fps must be in (0, 10000], got {self.fps}")

@@ -12,6 +12,7 @@ from engine.errors import ConfigError, MotionFormatError, OdmoError
 from engine.fileio import atomic_write
 from engine.motion.motion import Motion
 from engine.motion.skeleton import Skeleton
+from engine.npyio import load_npy
 
 UNIT_SCALE = {"m": 1.0, "cm": 0.01, "mm": 0.001}
 
@@ -61,9 +62,9 @@ def read_npy(
     if units not in UNIT_SCALE:
         raise ConfigError(f"unknown units {units!r}; choose one of {', '.join(UNIT_SCALE)}")
     try:
-        joints = np.load(path, allow_pickle=False)
+        joints = load_npy(path)
     except (ValueError, OSError, EOFError) as exc:
-        raise MotionFormatError(f"not a readable .npy array ({exc})", path) from None
+        raise MotionFormatError(f"not a readable .npy array: {exc}", path) from None
     if joints.dtype.kind not in "fiu" or joints.ndim != 3 or joints.shape[2] != 3:
         raise MotionFormatError(
             f"expected a numeric (T, J, 3) array, got {joints.dtype} {joints.shape}", path

@@ -28,7 +28,6 @@ newer than it knows. ``docs/NPZ_FORMAT.md`` describes the same schema for other 
 from __future__ import annotations
 
 import json
-import zipfile
 from pathlib import Path
 from typing import Any
 
@@ -39,6 +38,7 @@ from engine.errors import MotionFormatError, OdmoError
 from engine.fileio import atomic_write
 from engine.motion.motion import Motion
 from engine.motion.skeleton import Skeleton
+from engine.npyio import load_npz
 
 FORMAT_VERSION = 1
 _REQUIRED = ("joints", "fps", "parents", "joint_names", "offsets", "units", "up_axis", "action", "meta")
@@ -75,10 +75,9 @@ def read_npz(path: str | Path) -> Motion:
     """Read a schema-1 NPZ file into a :class:`Motion`; raises MotionFormatError naming the file."""
     path = Path(path)
     try:
-        with np.load(path, allow_pickle=False) as archive:
-            data = {key: archive[key] for key in archive.files}
-    except (ValueError, OSError, zipfile.BadZipFile, EOFError) as exc:
-        raise MotionFormatError(f"not a readable NPZ archive ({exc})", path) from None
+        data = load_npz(path)
+    except (ValueError, OSError) as exc:
+        raise MotionFormatError(f"not a readable NPZ archive: {exc}", path) from None
     missing = [key for key in _REQUIRED if key not in data]
     if missing:
         raise MotionFormatError(f"missing key(s): {', '.join(missing)}", path)
