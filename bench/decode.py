@@ -1,6 +1,9 @@
 """Decode latency and throughput on CPU (T = 60, 21 joints, 10 actions, default sizes, random weights).
 
 Run: ``python bench/decode.py [--threads 2] [--repeats 50]`` (every row at 1 thread and at --threads).
+The skeleton is the bundled model's (Bandai-Namco, 21 joints) so that the bone projection (the FK of
+bone directions the decoder runs) and the foot clean-up are timed on real topology; they have their
+own rows, with the torch FK of local rotations (what a rotation-output decoder would run) beside them.
 Reference (public ODMO modules, same machine class): 17.9 ms for a batch of 2, 1,861 motions/s at batch
 1024; aim: < 6 ms, >= 5,000/s.
 """
@@ -21,13 +24,25 @@ if __package__ in (None, ""):
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from bench._report import record
-from engine.generate import decode
+from engine.generate import decode, decode_array
 from engine.model.config import OdmoConfig
 from engine.model.odmo import OdmoModel
 from engine.modelio import LoadedModel
+from engine.motion.contact import foot_joints
+from engine.motion.ik import plant_feet
+from engine.motion.kinematics import BoneProjection, forward_kinematics, rotation_6d_to_matrix
 from engine.motion.skeleton import Skeleton
 
 N_ACTIONS, N_JOINTS = 10, 21
+BUNDLED = Path(__file__).resolve().parents[1] / "resources" / "models" / "bandai2-odmo" / "model.json"
+
+
+def bundled_skeleton() -> Skeleton:
+    """The bundled model's skeleton (names, parents, offsets from its model.json)."""
+    import json
+
+    meta = json.loads(BUNDLED.read_text(encoding="utf-8"))["skeleton"]
+    return Skeleton(tuple(meta["names"]), np.array(meta["parents"]), np.array(meta["offsets"]))
 
 
 def _timed(fn: Callable[[], object], repeats: int) -> float:
@@ -43,12 +58,8 @@ def _timed(fn: Callable[[], object], repeats: int) -> float:
     return statistics.median(times)
 
 
-def _loaded(model: OdmoModel, config: OdmoConfig) -> LoadedModel:
+def _loaded(model: OdmoModel, config: OdmoConfig, skeleton: Skeleton) -> LoadedModel:
     """A LoadedModel around random weights (no bank: end locations are given)."""
-    parents = np.arange(-1, N_JOINTS - 1)
-    skeleton = Skeleton(
-        tuple(f"j{i}" for i in range(N_JOINTS)), parents, np.tile([0.0, 0.1, 0.0], (N_JOINTS, 1))
-    )
     return LoadedModel(
         model=model,
         config=config,
@@ -88,8 +99,11 @@ def _stages(model: OdmoModel, rng: np.random.Generator, config: OdmoConfig) -> l
 
 
 def _decodes(loaded: LoadedModel, rng: np.random.Generator, repeats: int) -> list[dict[str, object]]:
-    """Time one decode through the API, then OdmoModel.decode at batch 1, 2, 64 and 1024."""
+    """Time one decode through the API (bone projection and foot clean-up included), then
+    OdmoModel.decode (projection included, no clean-up) at batch 1, 2, 64 and 1024, and decode_array
+    (everything the app and the exports get) at batch 1024."""
     config, model = loaded.config, loaded.model
+    model.attach_skeleton(loaded.skeleton)
     code, end = rng.standard_normal(config.latent_dim), np.array([0.5, 0.0, 1.0])
     one = _timed(lambda: decode(loaded, code, 3, end), repeats)
     rows: list[dict[str, object]] = [
@@ -118,6 +132,48 @@ def _decodes(loaded: LoadedModel, rng: np.random.Generator, repeats: int) -> lis
                 "motions/s": round(batch / seconds),
             }
         )
+    codes = rng.standard_normal((1024, config.latent_dim)).astype(np.float32)
+    actions, ends = rng.integers(0, N_ACTIONS, 1024), rng.standard_normal((1024, 3)).astype(np.float32)
+    seconds = _timed(lambda: decode_array(loaded, codes, actions, ends), 3)
+    rows.append(
+        {
+            "what": "engine.generate.decode_array (projection + foot clean-up)",
+            "batch": 1024,
+            "ms": round(seconds * 1e3, 2),
+            "motions/s": round(1024 / seconds),
+        }
+    )
+    return rows
+
+
+def _kinematics(skeleton: Skeleton, config: OdmoConfig, rng: np.random.Generator) -> list[dict[str, object]]:
+    """Time the bone projection, the foot clean-up and, for comparison, torch FK of 6D local rotations."""
+    rows = []
+    projection = BoneProjection(skeleton)
+    offsets = torch.as_tensor(skeleton.offsets, dtype=torch.float32)
+    feet = list(config.foot_joints)
+    for batch in (1, 1024):
+        joints = torch.as_tensor(
+            rng.standard_normal((batch, config.window, N_JOINTS, 3)), dtype=torch.float32
+        )
+        d6 = torch.as_tensor(rng.standard_normal((batch, config.window, N_JOINTS, 6)), dtype=torch.float32)
+        root = joints[..., 0, :]
+        positions = projection(joints).numpy()
+        contact = rng.random((batch, config.window, len(feet))) < 0.5
+        repeats = 50 if batch == 1 else 5
+        with torch.inference_mode():
+            stages = {
+                "bone projection (FK of bone directions, in the decoder)": lambda j=joints: projection(j),
+                "torch FK of 6D local rotations (not used; for comparison)": lambda d=d6, r=root: (
+                    forward_kinematics(rotation_6d_to_matrix(d), offsets, skeleton.parents, r)
+                ),
+                "foot clean-up (plant_feet, half the foot frames planted)": lambda p=positions, c=contact: (
+                    plant_feet(p, c, skeleton, feet, config.foot_heights)
+                ),
+            }
+            for name, fn in stages.items():
+                seconds = _timed(fn, repeats)
+                rows.append({"what": f"stage: {name}", "batch": batch, "ms": round(seconds * 1e3, 2)})
     return rows
 
 
@@ -128,14 +184,18 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--threads", type=int, default=2)
     parser.add_argument("--repeats", type=int, default=50)
     args = parser.parse_args(argv)
-    config = OdmoConfig(n_actions=N_ACTIONS, n_joints=N_JOINTS)
+    skeleton = bundled_skeleton()
+    feet = tuple(foot_joints(skeleton))
+    heights = tuple(0.04 if "Toe" in skeleton.names[j] else 0.11 for j in feet)
+    config = OdmoConfig(n_actions=N_ACTIONS, n_joints=N_JOINTS, foot_joints=feet, foot_heights=heights)
     model = OdmoModel(config, seed=0).eval()
-    loaded = _loaded(model, config)
+    loaded = _loaded(model, config, skeleton)
     rows = []
     for threads in sorted({1, args.threads}):
         torch.set_num_threads(threads)
         rng = np.random.default_rng(0)
         part = _decodes(loaded, rng, args.repeats) + _stages(model, rng, config)
+        part += _kinematics(skeleton, config, rng)
         rows += [{"threads": threads} | row for row in part]
     for row in rows:
         print(row)

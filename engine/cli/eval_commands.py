@@ -86,14 +86,18 @@ def _cmd_train_classifier(args: argparse.Namespace) -> int:
             window=args.window,
             fps=args.fps,
             epochs=args.epochs,
+            stride=args.stride,
             seed=args.seed,
             val_fraction=args.val_fraction,
             progress=progress,
         )
     print(f"classifier: {args.out}")
     print(
-        f"held-out accuracy: {clf.test_accuracy:.4f} on {clf.n_test} clips ({len(data.clips)} clips in all)"
+        f"held-out accuracy: {clf.test_accuracy:.4f} on {clf.n_test_windows} windows of {clf.n_test} clips "
+        f"({len(data.clips)} clips in all)"
     )
+    for action, accuracy in clf.test_accuracy_per_action.items():
+        print(f"  {action}: {accuracy:.4f}")
     return 0
 
 
@@ -209,6 +213,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--seed", type=int, default=0, help="random seed (0)")
     p.add_argument("--window", type=_positive, default=60, help="frames per window, as the model (60)")
     p.add_argument("--fps", type=float, default=20.0, help="frame rate of the windows, as the model (20)")
+    p.add_argument("--stride", type=_positive, default=10, help="frames between window starts (10)")
     p.add_argument("--val-fraction", type=float, default=0.2, help="clips held out for the accuracy (0.2)")
     _add_label_options(p)
     p.set_defaults(func=_cmd_train_classifier)

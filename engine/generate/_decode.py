@@ -9,7 +9,9 @@ import numpy as np
 import torch
 
 from engine.errors import ConfigError
+from engine.model.odmo import OdmoModel
 from engine.modelio import LoadedModel
+from engine.motion.ik import plant_feet
 from engine.motion.motion import Motion
 
 
@@ -81,22 +83,47 @@ def _writable(array: np.ndarray, dtype: type) -> np.ndarray:
     return np.require(array, dtype=dtype, requirements=("C", "W"))
 
 
+def ready_model(loaded: LoadedModel) -> OdmoModel:
+    """The loaded ODMO network, decoding onto the model's skeleton (bone projection attached once)."""
+    model = loaded.model
+    if model.config.bone_projection and model.projection is None:
+        model.attach_skeleton(loaded.skeleton)
+    return model
+
+
+def plant(loaded: LoadedModel, joints: np.ndarray, contact: np.ndarray | None) -> np.ndarray:
+    """Display-height joints (B, T, J, 3) with the foot clean-up applied where the model predicts contact
+    (unchanged for models without a contact head)."""
+    config = loaded.config
+    if contact is None or not (config.foot_contact and config.foot_joints and config.foot_heights):
+        return joints
+    return plant_feet(joints, contact > 0.0, loaded.skeleton, config.foot_joints, config.foot_heights)
+
+
+def decode_tensors(
+    loaded: LoadedModel, z: torch.Tensor, actions: torch.Tensor, ends: torch.Tensor | None
+) -> tuple[np.ndarray, np.ndarray]:
+    """Joints (B, T, J, 3) and root trajectory (B, T, 3) at display height of codes ``z`` (B, D) on the
+    model's device: on the skeleton's bone lengths (``bone_projection``) with planted feet pinned
+    (``foot_contact``), which is what the app shows and every export writes."""
+    with torch.inference_mode():
+        out = ready_model(loaded).decode_full(z, actions, ends)
+    lift = display_lift(loaded)
+    contact = None if out.contact is None else out.contact.cpu().numpy()
+    joints = plant(loaded, out.joints.cpu().numpy() + lift, contact)
+    return joints, out.trajectory.cpu().numpy() + lift
+
+
 def decode_array(
     loaded: LoadedModel, codes: np.ndarray, actions: np.ndarray, ends: np.ndarray | None
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Decode a batch; returns joints (B, T, J, 3) and root trajectory (B, T, 3), metres, display height.
-
-    ``codes`` (B, D) float32, ``actions`` (B,) int, ``ends`` (B, 3) float32 or None.
-    """
-    model = loaded.model
-    device = next(model.parameters()).device
-    with torch.inference_mode():
-        z = torch.as_tensor(_writable(codes, np.float32), device=device)
-        a = torch.as_tensor(_writable(actions, np.int64), device=device)
-        e = None if ends is None else torch.as_tensor(_writable(ends, np.float32), device=device)
-        joints, trajectory = model.decode(z, a, e)
-    lift = display_lift(loaded)
-    return joints.cpu().numpy() + lift, trajectory.cpu().numpy() + lift
+    """Decode a batch (``decode_tensors``); ``codes`` (B, D) float32, ``actions`` (B,) int, ``ends``
+    (B, 3) float32 or None."""
+    device = next(loaded.model.parameters()).device
+    z = torch.as_tensor(_writable(codes, np.float32), device=device)
+    a = torch.as_tensor(_writable(actions, np.int64), device=device)
+    e = None if ends is None else torch.as_tensor(_writable(ends, np.float32), device=device)
+    return decode_tensors(loaded, z, a, e)
 
 
 def generated_motion(

@@ -26,7 +26,7 @@ from engine.fileio import atomic_write_bytes, atomic_write_text
 from engine.metrics.accuracy import recognition_accuracy
 from engine.motion.motion import Motion
 from engine.train.pairs import split_clips
-from engine.train.windows import PreparedClips, crop_windows, prepare_clips
+from engine.train.windows import PreparedClips, every_window, prepare_clips, windows_at
 
 log = logging.getLogger(__name__)
 
@@ -52,12 +52,15 @@ class ClassifierConfig:
     lr: float = 1e-3
     batch_size: int = 64
     epochs: int = 60
+    stride: int = 10
 
     def __post_init__(self) -> None:
         self.fps = float(self.fps)
         for name in ("n_actions", "n_joints", "window", "fps", "hidden", "layers", "feature_dim", "lr"):
             if not getattr(self, name) > 0:
                 raise ConfigError(f"classifier {name} must be positive, got {getattr(self, name)!r}")
+        if self.stride < 1:
+            raise ConfigError(f"classifier stride must be at least 1, got {self.stride}")
         if self.batch_size < 1 or self.epochs < 0:
             raise ConfigError(f"need batch_size >= 1 and epochs >= 0, got {self.batch_size}, {self.epochs}")
 
@@ -131,6 +134,8 @@ class Classifier:
     test_accuracy: float
     n_test: int
     path: Path | None = None
+    test_accuracy_per_action: dict[str, float] = dataclasses.field(default_factory=dict)
+    n_test_windows: int = 0
 
     def classify(
         self, windows: np.ndarray, mask: np.ndarray | None = None, batch: int = 512
@@ -160,15 +165,22 @@ class Classifier:
         return self.config.n_joints * 3
 
 
-def _accuracy_on(
-    clf: Classifier, prepared: PreparedClips, indices: np.ndarray, rng: np.random.Generator
-) -> float:
-    """Accuracy on one random window of each clip in ``indices`` (nan when there are none)."""
-    if len(indices) == 0:
-        return float("nan")
-    batch = crop_windows(prepared, indices, rng)
+def held_out_accuracy(
+    clf: Classifier, prepared: PreparedClips, indices: np.ndarray
+) -> tuple[float, dict[str, float], int]:
+    """Accuracy over every window (the classifier's stride) of clips ``indices``, per action, and the
+    number of windows (nan and {} when there are none)."""
+    rows = every_window(prepared, indices, clf.config.stride)
+    if len(rows) == 0:
+        return float("nan"), {}, 0
+    batch = windows_at(prepared, rows[:, 0], rows[:, 1])
     _, pred = clf.classify(batch.joints, batch.mask)
-    return recognition_accuracy(pred, batch.actions)
+    labels = np.asarray(batch.actions)
+    per_action = {
+        prepared.action_names[int(a)]: recognition_accuracy(pred[labels == a], labels[labels == a])
+        for a in np.unique(labels)
+    }
+    return recognition_accuracy(pred, labels), per_action, len(rows)
 
 
 def train_classifier(
@@ -180,35 +192,45 @@ def train_classifier(
     fps: float = 20.0,
     epochs: int = 60,
     batch_size: int = 64,
+    stride: int = 10,
     seed: int = 0,
     val_fraction: float = 0.2,
     progress: Progress | None = None,
     cancel: Callable[[], bool] | None = None,
 ) -> Classifier:
-    """Train the classifier on random real windows, measure it on held-out clips, save it to ``out_dir``."""
+    """Train the classifier on every window (starts ``stride`` frames apart) of the training clips, each
+    epoch in a new order; measure it on every window of the held-out clips; save it to ``out_dir``."""
     if not clips:
         raise DataError("no clips to train the classifier on")
     if not 0.0 <= val_fraction < 1.0:
         raise ConfigError(f"val_fraction must be in [0, 1), got {val_fraction}")
     skeleton = clips[0].skeleton
     config = ClassifierConfig(
-        len(action_names), skeleton.n_joints, window=window, fps=fps, batch_size=batch_size, epochs=epochs
+        len(action_names),
+        skeleton.n_joints,
+        window=window,
+        fps=fps,
+        batch_size=batch_size,
+        epochs=epochs,
+        stride=stride,
     )
     prepared = prepare_clips(clips, action_names, fps, window)
     train_idx, held_idx = split_clips(prepared.actions, val_fraction, seed)
+    rows = every_window(prepared, train_idx, stride)
     rng = np.random.default_rng(seed)
     net = build_net(config, torch.Generator().manual_seed(seed))
     clf = Classifier(net, config, list(action_names), tuple(skeleton.names), float("nan"), len(held_idx))
     optimiser = torch.optim.Adam(net.parameters(), lr=config.lr)
     for epoch in range(epochs):
         net.train()
-        order = rng.permutation(train_idx)
+        order = rows[rng.permutation(len(rows))]
         total = 0.0
         for start in range(0, len(order), config.batch_size):
             if cancel is not None and cancel():
                 raise CancelledError("classifier training cancelled")
-            batch = crop_windows(prepared, order[start : start + config.batch_size], rng)
-            x = torch.from_numpy(np.asarray(batch.joints, np.float32).reshape(len(batch.actions), window, -1))
+            part = order[start : start + config.batch_size]
+            batch = windows_at(prepared, part[:, 0], part[:, 1])
+            x = torch.from_numpy(np.asarray(batch.joints, np.float32).reshape(len(part), window, -1))
             lengths = torch.from_numpy(np.maximum(np.asarray(batch.mask, bool).sum(axis=1), 1))
             _, logits = net(x, lengths)
             loss = nn.functional.cross_entropy(
@@ -217,14 +239,21 @@ def train_classifier(
             optimiser.zero_grad()
             loss.backward()
             optimiser.step()
-            total += loss.item() * len(batch.actions)
+            total += loss.item() * len(part)
         net.eval()
         log.info("classifier epoch %d/%d: loss %.4f", epoch + 1, epochs, total / max(len(order), 1))
         if progress is not None:
             progress("training classifier", (epoch + 1) / max(epochs, 1))
     net.eval()
-    clf.test_accuracy = _accuracy_on(clf, prepared, held_idx, np.random.default_rng(seed + 1))
-    log.info("classifier held-out accuracy %.4f on %d clips", clf.test_accuracy, len(held_idx))
+    clf.test_accuracy, clf.test_accuracy_per_action, clf.n_test_windows = held_out_accuracy(
+        clf, prepared, held_idx
+    )
+    log.info(
+        "classifier held-out accuracy %.4f on %d windows of %d clips",
+        clf.test_accuracy,
+        clf.n_test_windows,
+        len(held_idx),
+    )
     save_classifier(clf, out_dir)
     return clf
 
@@ -243,6 +272,8 @@ def save_classifier(clf: Classifier, out_dir: str | Path) -> None:
         "skeleton_names": list(clf.skeleton_names),
         "test_accuracy": None if math.isnan(clf.test_accuracy) else clf.test_accuracy,
         "n_test_clips": clf.n_test,
+        "n_test_windows": clf.n_test_windows,
+        "test_accuracy_per_action": clf.test_accuracy_per_action,
     }
     atomic_write_text(out / META_FILE, json.dumps(meta, indent=2) + "\n")
     clf.path = out
@@ -270,6 +301,8 @@ def load_classifier(clf_dir: str | Path) -> Classifier:
         skeleton = tuple(str(n) for n in meta["skeleton_names"])
         accuracy = meta["test_accuracy"]
         n_test = int(meta["n_test_clips"])
+        n_windows = int(meta.get("n_test_windows", 0))
+        per_action = {str(k): float(v) for k, v in dict(meta.get("test_accuracy_per_action", {})).items()}
     except (KeyError, TypeError, ValueError, ConfigError) as exc:
         raise ModelFormatError(f"{meta_path}: bad classifier description ({exc})") from None
     if len(actions) != config.n_actions or len(skeleton) != config.n_joints:
@@ -285,4 +318,4 @@ def load_classifier(clf_dir: str | Path) -> Classifier:
     net.load_state_dict(state)
     net.eval()
     test_accuracy = float("nan") if accuracy is None else float(accuracy)
-    return Classifier(net, config, actions, skeleton, test_accuracy, n_test, folder)
+    return Classifier(net, config, actions, skeleton, test_accuracy, n_test, folder, per_action, n_windows)

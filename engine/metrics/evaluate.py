@@ -11,6 +11,7 @@ import torch
 
 from engine.errors import CancelledError, ConfigError, DataError
 from engine.generate import sample
+from engine.generate._decode import decode_tensors, display_lift
 from engine.metrics.accuracy import recognition_accuracy
 from engine.metrics.apd import apd, n_apd
 from engine.metrics.classifier import Classifier
@@ -165,10 +166,9 @@ def _encode(loaded: LoadedModel, batch: WindowBatch) -> torch.Tensor:
 def reconstruction_error(loaded: LoadedModel, batch: WindowBatch) -> float:
     """MPJPE (metres) of encode → decode (true action and end location) over the real frames of a batch."""
     codes = _encode(loaded, batch)
-    with torch.inference_mode():
-        ends = torch.from_numpy(np.ascontiguousarray(batch.ends, np.float32))
-        recon, _ = loaded.model.decode(codes, torch.from_numpy(np.asarray(batch.actions, np.int64)), ends)
-    return mpjpe(recon.numpy(), batch.joints, batch.mask)
+    ends = torch.from_numpy(np.ascontiguousarray(batch.ends, np.float32))
+    recon = decode_tensors(loaded, codes, torch.from_numpy(np.asarray(batch.actions, np.int64)), ends)[0]
+    return mpjpe(recon - display_lift(loaded), batch.joints, batch.mask)
 
 
 def held_out(loaded: LoadedModel, sources: Sequence[str]) -> np.ndarray:
@@ -233,9 +233,8 @@ def _control_metrics(
             ("in", "out"), control_targets(ends, n_codes, rng, CONTROL_POINTS), strict=True
         ):
             flat = targets.reshape(-1, 3).astype(np.float32)
-            with torch.inference_mode():
-                joints, _ = loaded.model.decode(z, torch.full((len(z),), a), torch.from_numpy(flat))
-            joints = joints.numpy()
+            joints = decode_tensors(loaded, z, torch.full((len(z),), a), torch.from_numpy(flat))[0]
+            joints = joints - display_lift(loaded)
             e = end_point_errors(joints[:, :, root], flat)
             err[key].append(float(e.mean()))
             pct[key].append(100.0 * float(e.mean()) / max(travel, 1e-6))

@@ -10,7 +10,13 @@ from engine.errors import ConfigError, ModelFormatError
 from engine.limits import check_config
 
 #: Fields added after the first models were saved, with the value that reproduces those models.
-_BEFORE_SWITCHES = {"exact_end": False, "root_relative_poses": False}
+_BEFORE_SWITCHES = {
+    "exact_end": False,
+    "root_relative_poses": False,
+    "bone_projection": False,
+    "foot_contact": False,
+    "w_velocity": 0.0,
+}
 TRAIN_PRECISIONS = ("float32", "bfloat16")
 
 
@@ -28,6 +34,12 @@ class OdmoConfig:
     ``contrastive_pull`` scales the same-action pull of the contrastive term (1, the paper's, by default).
     ``train_precision`` "bfloat16" runs the training forward pass under bfloat16 autocast (weights, the
     optimiser and every decode stay float32); it is faster on CPUs with bfloat16 instructions.
+    ``bone_projection`` puts the decoded joints onto the skeleton's bone lengths (``BoneProjection``;
+    the reconstruction loss is taken on the projected joints, ``w_raw`` weights it on the raw ones the
+    decoder reads back). ``foot_contact`` adds a head predicting which ``foot_joints`` are planted
+    (labels from the data, resting heights ``foot_heights`` above the floor), a contact loss
+    (``w_contact``: cross-entropy, plus the speed of truly planted feet) and the decode-time clean-up
+    that pins planted feet. ``w_velocity`` weights an L2 loss on frame-to-frame joint velocities.
     """
 
     n_actions: int
@@ -60,6 +72,13 @@ class OdmoConfig:
     tf_decay_epochs: int = 200
     grad_clip: float = 1.0
     train_precision: str = "float32"
+    bone_projection: bool = True
+    w_raw: float = 1.0
+    foot_contact: bool = True
+    w_contact: float = 1.0
+    w_velocity: float = 0.1
+    foot_joints: tuple[int, ...] = ()
+    foot_heights: tuple[float, ...] = ()
     arch: str = "odmo"
 
     def __post_init__(self) -> None:
@@ -73,7 +92,17 @@ class OdmoConfig:
             raise ConfigError(f"window must be at least 2 frames, got {self.window}")
         if self.batch_size < 2:
             raise ConfigError("batch_size must be at least 2 (windows come in contrastive pairs)")
+        try:
+            self.foot_joints = tuple(int(j) for j in self.foot_joints)
+            self.foot_heights = tuple(float(h) for h in self.foot_heights)
+        except (TypeError, ValueError) as exc:
+            raise ConfigError(f"foot_joints and foot_heights must be lists of numbers ({exc})") from None
+        if self.foot_heights and len(self.foot_heights) != len(self.foot_joints):
+            raise ConfigError("foot_heights needs one height per foot joint")
+        if any(not 0 <= j < self.n_joints for j in self.foot_joints):
+            raise ConfigError(f"foot_joints must be joint indices below {self.n_joints}")
         weights = ("w_recon", "w_traj", "w_consistency", "w_contrastive", "w_prior", "traj_y_weight")
+        weights += ("w_raw", "w_contact", "w_velocity")
         for name in (*weights, "contrastive_pull"):
             if getattr(self, name) < 0:
                 raise ConfigError(f"{name} must be >= 0, got {getattr(self, name)!r}")

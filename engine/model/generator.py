@@ -120,11 +120,12 @@ class MotionGenerator(nn.Module):
         const = per_code.unsqueeze(1) + self.steps * weight[:, -1]
         return state, const
 
-    def _run(self, prev: Tensor, const: Tensor, state: tuple[Tensor, Tensor]) -> Tensor:
-        """Poses (B, T, J·3) given every frame's previous pose ``prev`` (B, T, J·3), in one LSTM call."""
+    def _run(self, prev: Tensor, const: Tensor, state: tuple[Tensor, Tensor]) -> tuple[Tensor, Tensor]:
+        """Poses (B, T, J·3) and top-layer hidden states (B, T, H) given every frame's previous pose
+        ``prev`` (B, T, J·3), in one LSTM call."""
         emb = self.embed_act(const + F.linear(prev, self.embed.weight[:, : self.pose_dim]))
         out, _ = self.lstm(emb, state)
-        return self.out(out).float()  # float32 under autocast too
+        return self.out(out).float(), out  # float32 under autocast too
 
     def forward(
         self,
@@ -133,8 +134,8 @@ class MotionGenerator(nn.Module):
         truth: Tensor | None = None,
         tf_rate: float = 0.0,
         generator: torch.Generator | None = None,
-    ) -> Tensor:
-        """Joint positions (B, T, J, 3).
+    ) -> tuple[Tensor, Tensor]:
+        """Joint positions (B, T, J, 3) and the decoder's top-layer hidden states (B, T, H).
 
         With ``truth`` (B, T, J, 3) this is parallel scheduled sampling: a teacher-forced pass over the
         whole sequence, then (if ``tf_rate`` < 1) a second pass whose previous pose at each frame is the
@@ -144,17 +145,18 @@ class MotionGenerator(nn.Module):
         b = cond.shape[0]
         state, const = self._context(trajectory, cond)
         if truth is None:
-            return self._absolute(self._free_run(const, state), trajectory)
+            poses, hidden = self._free_run(const, state)
+            return self._absolute(poses, trajectory), hidden
         gt = self._readback(truth.reshape(b, self.window, self.pose_dim))
         prev = torch.cat([gt.new_zeros(b, 1, self.pose_dim), gt[:, :-1]], dim=1)
-        if tf_rate >= 1.0:
-            return self._absolute(self._run(prev, const, state), trajectory)
-        with torch.no_grad():
-            first = self._readback(self._run(prev, const, state))
-        keep = torch.rand(b, self.window - 1, 1, generator=generator, device=gt.device) < tf_rate
-        mixed = torch.where(keep, gt[:, :-1], first[:, :-1])
-        prev = torch.cat([gt.new_zeros(b, 1, self.pose_dim), mixed], dim=1)
-        return self._absolute(self._run(prev, const, state), trajectory)
+        if tf_rate < 1.0:
+            with torch.no_grad():
+                first = self._readback(self._run(prev, const, state)[0])
+            keep = torch.rand(b, self.window - 1, 1, generator=generator, device=gt.device) < tf_rate
+            mixed = torch.where(keep, gt[:, :-1], first[:, :-1])
+            prev = torch.cat([gt.new_zeros(b, 1, self.pose_dim), mixed], dim=1)
+        poses, hidden = self._run(prev, const, state)
+        return self._absolute(poses, trajectory), hidden
 
     def _readback(self, poses: Tensor) -> Tensor:
         """Poses (..., J·3) as the decoder reads them back: root-centred if relative (a linear map)."""
@@ -201,15 +203,16 @@ class MotionGenerator(nn.Module):
             self._step_cache = (key, prepared)
         return prepared
 
-    def _free_run(self, const: Tensor, state: tuple[Tensor, Tensor]) -> Tensor:
+    def _free_run(self, const: Tensor, state: tuple[Tensor, Tensor]) -> tuple[Tensor, Tensor]:
         """Autoregressive decode, one frame at a time with LSTM cells sharing the nn.LSTM weights.
 
         The per-frame loop runs in TorchScript where available; every frame's pose is read out of the
         stacked top-layer hidden states with a single matrix product. It always runs in float32, also
-        under autocast (whose lower precision would compound over the frames).
+        under autocast (whose lower precision would compound over the frames). Returns the poses and the
+        top-layer hidden states.
         """
         with torch.autocast(const.device.type, enabled=False):
             fused, bias_next, slope, w_ih, w_hh, bias = self._step_weights()
             h0, c0 = state[0].float(), state[1].float()
             tops = _compiled_loop()(const.float(), bias_next, h0, c0, fused, slope, w_ih, w_hh, bias)
-            return self.out(tops)
+            return self.out(tops), tops

@@ -7,7 +7,7 @@ from torch import Tensor
 
 from engine.model.config import OdmoConfig
 
-LOSS_TERMS = ("recon", "traj", "consistency", "contrastive", "prior")
+LOSS_TERMS = ("recon", "traj", "consistency", "contrastive", "prior", "raw", "velocity", "contact")
 
 
 def masked_mse(pred: Tensor, target: Tensor, mask: Tensor, axis_weights: Tensor | None = None) -> Tensor:
@@ -25,6 +25,23 @@ def masked_mse(pred: Tensor, target: Tensor, mask: Tensor, axis_weights: Tensor 
     per_frame = err.flatten(2).mean(dim=2)
     m = mask.to(per_frame.dtype)
     return (per_frame * m).sum() / m.sum().clamp(min=1.0)
+
+
+def velocity_loss(pred: Tensor, target: Tensor, mask: Tensor, fps: float) -> Tensor:
+    """Mean squared error (m²/s²) of frame-to-frame joint velocities over pairs of real frames."""
+    both = mask[:, 1:].bool() & mask[:, :-1].bool()
+    return masked_mse(pred.diff(dim=1) * fps, target.diff(dim=1) * fps, both)
+
+
+def contact_loss(logits: Tensor, labels: Tensor, feet: Tensor, mask: Tensor, fps: float) -> Tensor:
+    """Cross-entropy of the contact logits (B, T, F) against labels (B, T, F) over real frames, plus the
+    mean squared speed (m²/s²) of generated foot joints ``feet`` (B, T, F, 3) where the data's are planted."""
+    m = mask.to(logits.dtype).unsqueeze(-1).expand_as(logits)
+    bce = torch.nn.functional.binary_cross_entropy_with_logits(logits, labels, weight=m, reduction="sum")
+    planted = (labels[:, 1:] * labels[:, :-1] * m[:, 1:] * m[:, :-1]).detach()
+    speed2 = (feet.diff(dim=1) * fps).square().sum(-1)
+    skate = (speed2 * planted).sum() / planted.sum().clamp(min=1.0)
+    return bce / m.sum().clamp(min=1.0) + skate
 
 
 def contrastive_loss(
@@ -56,6 +73,9 @@ def odmo_losses(
     logvar: Tensor,
     same: Tensor,
     root: int,
+    raw_joints: Tensor | None = None,
+    contact_logits: Tensor | None = None,
+    contacts: Tensor | None = None,
 ) -> dict[str, Tensor]:
     """Every loss term and the weighted ``total``.
 
@@ -67,8 +87,12 @@ def odmo_losses(
     mu, logvar : (2B, D) code posteriors.
     same : (B,) True where anchor i and partner i share an action.
     root : index of the root joint.
+    raw_joints : (2B, T, J, 3) the decoder's joints before the bone projection (None: no projection).
+    contact_logits, contacts : (2B, T, F) predicted contact logits and the data's labels of the config's
+        foot joints (None: no contact head).
     """
     axis = torch.tensor([1.0, config.traj_y_weight, 1.0], device=joints.device)
+    zero = joints.new_zeros(())
     b = same.shape[0]
     terms = {
         "recon": masked_mse(pred_joints, joints, mask),
@@ -76,13 +100,22 @@ def odmo_losses(
         "consistency": masked_mse(pred_joints[:, :, root], pred_trajectory, mask),
         "contrastive": contrastive_loss(mu[:b], mu[b:], same, config.alpha, config.contrastive_pull),
         "prior": prior_loss(logvar, config.prior_sigma2),
+        "raw": zero if raw_joints is None else masked_mse(raw_joints, joints, mask),
+        "velocity": velocity_loss(pred_joints, joints, mask, config.fps),
+        "contact": zero,
     }
+    if contact_logits is not None and contacts is not None:
+        feet = pred_joints[:, :, list(config.foot_joints)]
+        terms["contact"] = contact_loss(contact_logits, contacts, feet, mask, config.fps)
     weights = {
         "recon": config.w_recon,
         "traj": config.w_traj,
         "consistency": config.w_consistency,
         "contrastive": config.w_contrastive,
         "prior": config.w_prior,
+        "raw": config.w_raw if raw_joints is not None else 0.0,
+        "velocity": config.w_velocity,
+        "contact": config.w_contact if contact_logits is not None else 0.0,
     }
     terms["total"] = sum(weights[k] * terms[k] for k in LOSS_TERMS if weights[k] > 0)
     return terms

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import torch
 import torch.nn.functional as F  # noqa: N812
@@ -12,10 +13,23 @@ from engine.model.config import OdmoConfig
 from engine.model.encoder import LmpEncoder
 from engine.model.generator import MotionGenerator
 from engine.model.trajectory import TrajectoryGenerator
+from engine.motion.kinematics import BoneProjection
+from engine.motion.skeleton import Skeleton
 
 #: Free-running decodes of more codes than this run in slices of it: each slice's LSTM states and gates
 #: stay in the CPU cache, which is faster than one large batch.
 DECODE_SLICE = 256
+
+
+class Decoded(NamedTuple):
+    """What a decode produces: ``joints`` (B, T, J, 3) (on the skeleton's bone lengths once one is
+    attached and ``bone_projection`` is on), ``trajectory`` (B, T, 3), the decoder's ``raw`` joints
+    (B, T, J, 3) and ``contact`` logits (B, T, F) of the config's foot joints (None without the head)."""
+
+    joints: Tensor
+    trajectory: Tensor
+    raw: Tensor
+    contact: Tensor | None
 
 
 class OdmoModel(nn.Module):
@@ -36,9 +50,19 @@ class OdmoModel(nn.Module):
             self.motion_gen = MotionGenerator(
                 config.n_joints, cond_dim, config.motion_hidden, config.window, config.root_relative_poses
             )
+            n_feet = len(config.foot_joints) if config.foot_contact else 0
+            self.contact = nn.Linear(config.motion_hidden, n_feet) if n_feet else None
         self.to_empty(device="cpu")
         self._init_buffers()
         self.reset_parameters(torch.Generator().manual_seed(seed))
+        self.projection: BoneProjection | None = None
+
+    def attach_skeleton(self, skeleton: Skeleton) -> None:
+        """Decode onto ``skeleton``'s bone lengths from now on (when ``config.bone_projection`` is on)."""
+        if not self.config.bone_projection:
+            return
+        device = next(self.parameters()).device
+        self.projection = BoneProjection(skeleton).to(device)
 
     def _init_buffers(self) -> None:
         """Fill the non-persistent time-step buffers (left empty by ``to_empty``)."""
@@ -93,16 +117,31 @@ class OdmoModel(nn.Module):
         ``prev_truth`` (B, T, J, 3) enables (scheduled) teacher forcing for training; without it the
         decoder runs free.
         """
+        out = self.decode_full(z, action, end, prev_truth, tf_rate, generator)
+        return out.joints, out.trajectory
+
+    def decode_full(
+        self,
+        z: Tensor,
+        action: Tensor,
+        end: Tensor | None = None,
+        prev_truth: Tensor | None = None,
+        tf_rate: float = 0.0,
+        generator: torch.Generator | None = None,
+    ) -> Decoded:
+        """``decode`` with the raw joints and the foot-contact logits as well."""
         if prev_truth is None and not torch.is_grad_enabled() and z.shape[0] > DECODE_SLICE:
             parts = [
-                self.decode(z[i : i + DECODE_SLICE], action[i : i + DECODE_SLICE], end_slice)
+                self.decode_full(z[i : i + DECODE_SLICE], action[i : i + DECODE_SLICE], end_slice)
                 for i, end_slice in _slices(end, z.shape[0])
             ]
-            return torch.cat([p[0] for p in parts]), torch.cat([p[1] for p in parts])
+            return Decoded(*(None if p[0] is None else torch.cat(p) for p in zip(*parts, strict=True)))
         cond = self.condition(z, action)
         traj = self.traj_gen(cond, end)
-        joints = self.motion_gen(traj, cond, prev_truth, tf_rate, generator)
-        return joints, traj
+        raw, hidden = self.motion_gen(traj, cond, prev_truth, tf_rate, generator)
+        joints = raw if self.projection is None else self.projection(raw)
+        contact = None if self.contact is None else self.contact(hidden).float()
+        return Decoded(joints, traj, raw, contact)
 
 
 def _slices(end: Tensor | None, n: int) -> list[tuple[int, Tensor | None]]:

@@ -18,17 +18,20 @@ Policy
 from __future__ import annotations
 
 import logging
+from collections.abc import Sequence
 
 import numpy as np
 from scipy.spatial.transform import Rotation
 
 from engine.errors import ConfigError
+from engine.motion.contact import leg_chains
 from engine.motion.motion import Motion
 from engine.motion.skeleton import Skeleton
 
 log = logging.getLogger(__name__)
 
 TWIST_POLICIES = ("minimal",)
+PLANT_RAMP = 3  # frames over which a planted foot's shift fades in and out
 _EPS = 1e-9
 
 
@@ -130,3 +133,91 @@ def _kabsch(rest: np.ndarray, seen: np.ndarray, weights: np.ndarray) -> Rotation
     for t, frame in enumerate(seen):
         quats[t] = Rotation.align_vectors(frame, rest, weights=weights)[0].as_quat()
     return Rotation.from_quat(quats)
+
+
+def plant_feet(
+    joints: np.ndarray,
+    contact: np.ndarray,
+    skeleton: Skeleton,
+    feet: Sequence[int],
+    heights: Sequence[float],
+    ramp: int = PLANT_RAMP,
+) -> np.ndarray:
+    """Joints (B, T, J, 3), floor y = 0, with planted feet pinned and no foot under its resting height.
+
+    Per leg (``leg_chains``): while its lowest-resting foot joint (the toe) is planted (``contact``
+    (B, T, F) over ``feet``, resting ``heights`` (F,)), that joint keeps the mean floor position of the
+    contact and sits at its resting height; the shift fades out over ``ramp`` frames either side. Any
+    frame whose foot joints dip under their resting heights is lifted to them. The foot moves rigidly and
+    the knee is re-solved by two-bone IK (hip fixed, bone lengths kept; a target out of reach is
+    approached along the hip-to-target line), so the pose stays one a BVH holds exactly.
+    """
+    out = np.array(joints, dtype=np.float64, copy=True)
+    feet, heights = list(feet), np.asarray(heights, dtype=np.float64)
+    for hip, knee, ankle, below in leg_chains(skeleton):
+        leg = [ankle, *below]
+        cols = [feet.index(j) for j in leg if j in feet]
+        if not cols:
+            continue
+        rest = heights[cols]
+        low = cols[int(np.argmin(rest))]
+        delta = _pin_shift(out[:, :, feet[low]], np.asarray(contact, bool)[..., low], rest.min(), ramp)
+        moved = out[:, :, [feet[c] for c in cols]] + delta[:, :, None]
+        delta[..., 1] += np.maximum(0.0, (rest - moved[..., 1]).max(axis=-1))
+        moving = np.abs(delta).max(axis=-1) > 1e-9  # (B, T): frames left alone stay bit-identical
+        if not moving.any():
+            continue
+        legs = out[moving]  # (N, J, 3)
+        target = legs[:, ankle] + delta[moving]
+        new_knee, reached = _two_bone(legs[:, hip], legs[:, knee], legs[:, ankle], target)
+        legs[:, below] += (reached - legs[:, ankle])[:, None]
+        legs[:, knee], legs[:, ankle] = new_knee, reached
+        out[moving] = legs
+    return out.astype(np.asarray(joints).dtype)
+
+
+def _pin_shift(pos: np.ndarray, planted: np.ndarray, rest: float, ramp: int) -> np.ndarray:
+    """(B, T, 3) shift that holds joint positions ``pos`` (B, T, 3) at the mean floor point of each
+    contact (``planted`` (B, T)) and at height ``rest``, faded out linearly over ``ramp`` frames."""
+    b, t = planted.shape
+    planted = np.asarray(planted, bool)
+    starts = planted & ~np.concatenate([np.zeros((b, 1), bool), planted[:, :-1]], axis=1)
+    seg = np.cumsum(starts, axis=1) + (np.arange(b) * (t + 1))[:, None]
+    ids = seg[planted]
+    count = np.bincount(ids, minlength=b * (t + 1))
+    delta = np.zeros((b, t, 3))
+    for axis in (0, 2):
+        mean = np.bincount(ids, weights=pos[..., axis][planted], minlength=count.size) / np.maximum(count, 1)
+        delta[..., axis][planted] = mean[ids] - pos[..., axis][planted]
+    delta[..., 1][planted] = rest - pos[..., 1][planted]
+    if ramp <= 0 or not planted.any():
+        return delta
+    frames = np.arange(t)[None, :]
+    last = np.maximum.accumulate(np.where(planted, frames, -(10**9)), axis=1)
+    nxt = np.minimum.accumulate(np.where(planted, frames, 10**9)[:, ::-1], axis=1)[:, ::-1]
+    near = np.where(frames - last <= nxt - frames, last, nxt)
+    gap = np.abs(frames - near)
+    weight = np.clip(1.0 - gap / (ramp + 1.0), 0.0, 1.0)
+    source = np.take_along_axis(delta, np.clip(near, 0, t - 1)[..., None], axis=1)
+    return np.where(planted[..., None], delta, weight[..., None] * source)
+
+
+def _two_bone(
+    hip: np.ndarray, knee: np.ndarray, ankle: np.ndarray, target: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Knee and ankle positions (..., 3) with the hip fixed, both bone lengths kept and the ankle at
+    ``target`` (or as near as the leg reaches along the hip-to-target line), bending in the knee's plane."""
+    l1 = np.linalg.norm(knee - hip, axis=-1, keepdims=True)
+    l2 = np.linalg.norm(ankle - knee, axis=-1, keepdims=True)
+    v = target - hip
+    d = np.linalg.norm(v, axis=-1, keepdims=True)
+    u = v / np.maximum(d, _EPS)
+    d = np.clip(d, np.abs(l1 - l2) + 1e-6, l1 + l2 - 1e-6)
+    along = (l1**2 - l2**2 + d**2) / (2 * d)
+    across = np.sqrt(np.maximum(l1**2 - along**2, 0.0))
+    pole = knee - hip
+    w = pole - (pole * u).sum(-1, keepdims=True) * u
+    w_norm = np.linalg.norm(w, axis=-1, keepdims=True)
+    fallback = np.cross(u, [1.0, 0.0, 0.0])
+    w = np.where(w_norm > 1e-9, w / np.maximum(w_norm, 1e-12), fallback)
+    return hip + along * u + across * w, hip + d * u

@@ -4,6 +4,7 @@ a per-epoch CSV log, and the final model folder with its latent bank."""
 from __future__ import annotations
 
 import csv
+import dataclasses
 import io
 import logging
 import math
@@ -26,6 +27,7 @@ from engine.model.config import OdmoConfig
 from engine.model.losses import LOSS_TERMS, odmo_losses
 from engine.model.odmo import OdmoModel
 from engine.modelio import resolve_device, save_bank, save_model
+from engine.motion.contact import contact_labels, foot_joints, resting_heights
 from engine.motion.motion import Motion
 from engine.train.checkpoint import checkpoint_path, load_checkpoint, save_checkpoint
 from engine.train.pairs import PairSampler, split_clips
@@ -86,14 +88,30 @@ class _Tensors:
     mask: torch.Tensor
     actions: torch.Tensor
     ends: torch.Tensor
+    contacts: torch.Tensor | None = None
 
     @classmethod
-    def of(cls, batch: WindowBatch, device: torch.device) -> _Tensors:
+    def of(cls, batch: WindowBatch, device: torch.device, config: OdmoConfig | None = None) -> _Tensors:
+        """The batch on ``device``, with the foot-contact labels when ``config`` has a contact head."""
+
         def t(a: np.ndarray) -> torch.Tensor:
             return torch.from_numpy(np.ascontiguousarray(a)).to(device)
 
+        contacts = None
+        if config is not None and config.foot_contact and config.foot_joints:
+            lifted = batch.joints.copy()
+            lifted[..., 1] += batch.origin[:, None, None, 1]  # canonical windows, floor back at y = 0
+            feet, heights = list(config.foot_joints), np.array(config.foot_heights)
+            labels = contact_labels(lifted, config.fps, feet, heights)
+            contacts = t(labels.astype(np.float32))
         return cls(
-            t(batch.joints), t(batch.lmp), t(batch.trajectory), t(batch.mask), t(batch.actions), t(batch.ends)
+            t(batch.joints),
+            t(batch.lmp),
+            t(batch.trajectory),
+            t(batch.mask),
+            t(batch.actions),
+            t(batch.ends),
+            contacts,
         )
 
 
@@ -116,18 +134,21 @@ def _forward(
     else:
         z, truth = mu, None
     end = data.ends if config.use_end_location else None
-    joints, traj = model.decode(z, data.actions, end, prev_truth=truth, tf_rate=tf_rate, generator=generator)
+    out = model.decode_full(z, data.actions, end, prev_truth=truth, tf_rate=tf_rate, generator=generator)
     return odmo_losses(
         config,
         joints=data.joints,
         trajectory=data.trajectory,
         mask=data.mask,
-        pred_joints=joints,
-        pred_trajectory=traj,
+        pred_joints=out.joints,
+        pred_trajectory=out.trajectory,
         mu=mu,
         logvar=logvar,
         same=same,
         root=root,
+        raw_joints=out.raw if model.projection is not None else None,
+        contact_logits=out.contact,
+        contacts=data.contacts,
     )
 
 
@@ -138,7 +159,7 @@ def _identity_config(config: dict[str, Any]) -> dict[str, Any]:
 
 
 def _validation_set(
-    prepared: PreparedClips, val_idx: np.ndarray, seed: int, device: torch.device
+    prepared: PreparedClips, val_idx: np.ndarray, seed: int, device: torch.device, config: OdmoConfig
 ) -> tuple[_Tensors, torch.Tensor] | None:
     """Fixed validation batch: centre crops of every validation clip and partners among them."""
     if len(val_idx) == 0:
@@ -148,7 +169,7 @@ def _validation_set(
     slot = np.searchsorted(sampler.actions, prepared.actions[val_idx])
     partners, same = sampler.partners(slot, rng)
     batch = crop_windows(prepared, np.concatenate([val_idx, partners]), None)
-    return _Tensors.of(batch, device), torch.from_numpy(same).to(device)
+    return _Tensors.of(batch, device, config), torch.from_numpy(same).to(device)
 
 
 def write_log(path: Path, rows: list[dict[str, float]]) -> None:
@@ -176,6 +197,19 @@ def _check_sizes(config: OdmoConfig, prepared: PreparedClips) -> None:
         raise ConfigError(f"config has {config.n_actions} actions, data has {len(prepared.action_names)}")
     if config.n_joints != prepared.skeleton.n_joints:
         raise ConfigError(f"config has {config.n_joints} joints, data has {prepared.skeleton.n_joints}")
+
+
+def with_feet(config: OdmoConfig, prepared: PreparedClips, train_idx: np.ndarray) -> OdmoConfig:
+    """``config`` with its foot joints (by name) and their resting heights over the training clips filled
+    in when it has a contact head and none given; the head is switched off for a skeleton without feet."""
+    if not config.foot_contact or config.foot_joints:
+        return config
+    feet = foot_joints(prepared.skeleton)
+    if not feet:
+        log.warning("no foot joints (foot, toe, ankle) in the skeleton: training without foot contact")
+        return dataclasses.replace(config, foot_contact=False)
+    heights = resting_heights([prepared.joints[i] for i in train_idx], feet)
+    return dataclasses.replace(config, foot_joints=tuple(feet), foot_heights=tuple(float(h) for h in heights))
 
 
 def train(
@@ -209,11 +243,13 @@ def train(
     _check_sizes(config, prepared)
     fingerprint = prepared.fingerprint()
     train_idx, val_idx = split_clips(prepared.actions, val_fraction, seed)
+    config = with_feet(config, prepared, train_idx)
     sampler = PairSampler(prepared.actions, train_idx)
-    validation = _validation_set(prepared, val_idx, seed, dev)
+    validation = _validation_set(prepared, val_idx, seed, dev, config)
     root = prepared.skeleton.root
 
     model = OdmoModel(config, seed=seed).to(dev)
+    model.attach_skeleton(prepared.skeleton)
     optimizer = torch.optim.Adam(model.parameters(), lr=config.lr)
     rng = np.random.default_rng(seed)
     tgen = torch.Generator(dev).manual_seed(seed)
@@ -258,7 +294,7 @@ def train(
                 terms = _forward(
                     model,
                     config,
-                    _Tensors.of(batch, dev),
+                    _Tensors.of(batch, dev, config),
                     torch.from_numpy(same).to(dev),
                     root,
                     tf_rate=tf_rate,

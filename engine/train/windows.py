@@ -239,19 +239,36 @@ def crop_windows(
     """Canonical windows of clips ``indices``: a uniform random start (every start from 0 to T_i − T
     inclusive) drawn from ``rng``, or the centre crop when ``rng`` is None; short clips are padded."""
     indices = np.asarray(indices, dtype=np.int64)
+    last_start = np.maximum(prepared.lengths[indices] - prepared.window, 0)
+    starts = last_start // 2 if rng is None else rng.integers(0, last_start + 1)
+    return windows_at(prepared, indices, starts)
+
+
+def every_window(prepared: PreparedClips, indices: Sequence[int] | np.ndarray, stride: int) -> np.ndarray:
+    """(W, 2) (clip, start) of every window of clips ``indices``: starts 0, stride, … and the last one."""
+    rows = []
+    for i in np.asarray(indices, dtype=np.int64):
+        last = max(int(prepared.lengths[i]) - prepared.window, 0)
+        starts = np.unique(np.append(np.arange(0, last + 1, stride), last))
+        rows.append(np.stack([np.full(len(starts), i), starts], axis=1))
+    return np.concatenate(rows) if rows else np.zeros((0, 2), dtype=np.int64)
+
+
+def windows_at(
+    prepared: PreparedClips, indices: Sequence[int] | np.ndarray, starts: Sequence[int] | np.ndarray
+) -> WindowBatch:
+    """Canonical windows of clips ``indices`` starting at frames ``starts``; short clips are padded."""
+    indices = np.asarray(indices, dtype=np.int64)
+    starts = np.asarray(starts, dtype=np.int64)
     t = prepared.window
     lengths = prepared.lengths[indices]
-    last_start = np.maximum(lengths - t, 0)
-    starts = last_start // 2 if rng is None else rng.integers(0, last_start + 1)
     j = prepared.skeleton.n_joints
     raw = np.empty((len(indices), t, j, 3), dtype=np.float32)
     for b, (i, s) in enumerate(zip(indices, starts, strict=True)):
         clip = prepared.joints[i][s : s + t]
         raw[b, : len(clip)] = clip
         raw[b, len(clip) :] = clip[-1]
-    mask = np.arange(t)[None, :] < np.minimum(lengths, t)[:, None]
+    mask = np.arange(t)[None, :] < np.minimum(lengths - starts, t)[:, None]
     root = prepared.skeleton.root
     canon, origin, yaw = _canonical(raw, root, prepared.pairs)
-    return WindowBatch(
-        canon, mask, prepared.actions[indices], indices, starts.astype(np.int64), origin, yaw, root
-    )
+    return WindowBatch(canon, mask, prepared.actions[indices], indices, starts, origin, yaw, root)

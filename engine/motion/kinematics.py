@@ -1,0 +1,113 @@
+"""Differentiable (torch) kinematics on a fixed skeleton: bone-length projection and forward kinematics.
+
+``BoneProjection`` maps any joint positions to the nearest-in-direction pose with the skeleton's bone
+lengths that a BVH can hold exactly: every bone keeps its length, a joint with one child points it
+along the input's direction, and a joint with several children (hips, chest) places them rigidly, as
+its rest offsets turned by one rotation (the frame of two of its child bones). ``forward_kinematics``
+is the same tree walked from local rotation matrices, for rotation-based generators.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import torch
+from torch import Tensor, nn
+
+from engine.motion.skeleton import Skeleton
+
+_EPS = 1e-8
+
+
+def _frame(a: Tensor, b: Tensor) -> Tensor:
+    """(..., 3, 3) orthonormal frame (columns) of vectors ``a`` and ``b`` (..., 3) by Gram–Schmidt."""
+    e1 = a / a.norm(dim=-1, keepdim=True).clamp_min(_EPS)
+    b = b - (b * e1).sum(-1, keepdim=True) * e1
+    e2 = b / b.norm(dim=-1, keepdim=True).clamp_min(_EPS)
+    return torch.stack([e1, e2, torch.linalg.cross(e1, e2)], dim=-1)
+
+
+def _frame_pair(offsets: np.ndarray, kids: list[int]) -> tuple[int, int]:
+    """The two children of a joint whose rest offsets are furthest from parallel."""
+    unit = offsets[kids] / np.maximum(np.linalg.norm(offsets[kids], axis=1, keepdims=True), _EPS)
+    best, pair = -1.0, (kids[0], kids[1])
+    for i in range(len(kids)):
+        for k in range(i + 1, len(kids)):
+            s = float(np.linalg.norm(np.cross(unit[i], unit[k])))
+            if s > best:
+                best, pair = s, (kids[i], kids[k])
+    return pair
+
+
+class BoneProjection(nn.Module):
+    """Joint positions (..., J, 3) onto ``skeleton``'s bone lengths (the root stays where it is).
+
+    Bones whose rest offset is zero keep a zero length; a joint whose children are all parallel in the
+    rest pose is treated as having one child (its longest).
+    """
+
+    def __init__(self, skeleton: Skeleton):
+        super().__init__()
+        parents = np.array(skeleton.parents)
+        offsets = np.array(skeleton.offsets, dtype=np.float64)
+        n = len(parents)
+        self.root = skeleton.root
+        lengths = np.linalg.norm(offsets, axis=1)
+        lengths[self.root] = 0.0
+        ancestors = np.zeros((n, n), dtype=np.float32)  # ancestors[j, k] = 1: bone k lies on root → j
+        for j in range(n):
+            k = j
+            while parents[k] >= 0:
+                ancestors[j, k] = 1.0
+                k = parents[k]
+        rigid, single = [], []
+        for p in range(n):
+            kids = [c for c in skeleton.children(p) if lengths[c] > _EPS]
+            if len(kids) >= 2:
+                a, b = _frame_pair(offsets, kids)
+                if np.linalg.norm(np.cross(offsets[a], offsets[b])) > 1e-6 * lengths[a] * lengths[b]:
+                    rigid.append((p, kids, a, b))
+                    continue
+            single.extend(kids)
+        self.rigid = rigid
+        self.register_buffer("parents", torch.as_tensor(np.maximum(parents, 0)), persistent=False)
+        self.register_buffer("single", torch.as_tensor(sorted(single), dtype=torch.long), persistent=False)
+        self.register_buffer("lengths", torch.as_tensor(lengths, dtype=torch.float32), persistent=False)
+        self.register_buffer("offsets", torch.as_tensor(offsets, dtype=torch.float32), persistent=False)
+        self.register_buffer("ancestors", torch.as_tensor(ancestors), persistent=False)
+        rests = [_frame(self.offsets[a], self.offsets[b]) for _, _, a, b in rigid]
+        self._rest_frames = [r.transpose(-1, -2) for r in rests]
+
+    def forward(self, joints: Tensor) -> Tensor:
+        """Projected positions, same shape as ``joints``."""
+        bones = joints - joints[..., self.parents, :]
+        out = torch.zeros_like(bones)
+        if len(self.single):
+            v = bones[..., self.single, :]
+            unit = v / v.norm(dim=-1, keepdim=True).clamp_min(_EPS)
+            out[..., self.single, :] = unit * self.lengths[self.single, None].to(joints)
+        offsets = self.offsets.to(joints)
+        for (_, kids, a, b), rest in zip(self.rigid, self._rest_frames, strict=True):
+            turn = _frame(bones[..., a, :], bones[..., b, :]) @ rest.to(joints)
+            out[..., kids, :] = torch.einsum("...ij,kj->...ki", turn, offsets[kids])
+        placed = torch.einsum("jk,...kc->...jc", self.ancestors.to(joints), out)
+        return placed + joints[..., self.root : self.root + 1, :]
+
+
+def rotation_6d_to_matrix(d6: Tensor) -> Tensor:
+    """(..., 3, 3) rotation matrices (columns from Gram–Schmidt) of 6D rotations (..., 6)."""
+    return _frame(d6[..., :3], d6[..., 3:])
+
+
+def forward_kinematics(local: Tensor, offsets: Tensor, parents: np.ndarray, root: Tensor) -> Tensor:
+    """(..., J, 3) positions from local rotation matrices (..., J, 3, 3), rest ``offsets`` (J, 3) and root
+    positions (..., 3); ``parents`` precede children, the root's is -1."""
+    world: list[Tensor] = []
+    pos: list[Tensor] = []
+    for j, p in enumerate(np.asarray(parents)):
+        if p < 0:
+            world.append(local[..., j, :, :])
+            pos.append(root)
+        else:
+            world.append(world[p] @ local[..., j, :, :])
+            pos.append(pos[p] + (world[p] @ offsets[j].to(local).unsqueeze(-1)).squeeze(-1))
+    return torch.stack(pos, dim=-2)

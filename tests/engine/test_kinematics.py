@@ -1,0 +1,85 @@
+"""Bone-length projection and torch forward kinematics against scipy-based FK and the BVH IK."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import torch
+from scipy.spatial.transform import Rotation
+
+from engine.motion.ik import joints_to_rotations
+from engine.motion.kinematics import BoneProjection, forward_kinematics, rotation_6d_to_matrix
+from engine.motion.motion import Motion
+from engine.motion.rotations import forward_kinematics as fk_numpy
+from tests.fixtures.procedural import procedural_skeleton
+
+
+def _random_pose(skeleton, t: int, seed: int) -> np.ndarray:
+    """(T, J, 3) FK of random local rotations: a pose the skeleton can hold, bones at rest length."""
+    rng = np.random.default_rng(seed)
+    quats = Rotation.random(t * skeleton.n_joints, random_state=rng).as_quat(scalar_first=True)
+    return fk_numpy(skeleton, quats.reshape(t, -1, 4), rng.normal(size=(t, 3)))
+
+
+def _lengths(joints: np.ndarray, parents: np.ndarray) -> np.ndarray:
+    kids = np.flatnonzero(parents >= 0)
+    return np.linalg.norm(joints[..., kids, :] - joints[..., parents[kids], :], axis=-1)
+
+
+def test_projection_puts_any_pose_on_the_skeleton_bone_lengths() -> None:
+    skeleton = procedural_skeleton()
+    clean = _random_pose(skeleton, 20, 0)
+    noisy = clean + np.random.default_rng(1).normal(scale=0.02, size=(20, 11, 3))
+    projected = BoneProjection(skeleton)(torch.tensor(noisy, dtype=torch.float32)).numpy()
+    expected = np.linalg.norm(skeleton.offsets, axis=1)[skeleton.parents >= 0]
+    np.testing.assert_allclose(
+        _lengths(projected, skeleton.parents), np.broadcast_to(expected, (20, 10)), atol=1e-5
+    )
+    np.testing.assert_allclose(projected[:, 0], noisy[:, 0], atol=1e-6)  # the root stays
+    # near the pose the noise was added to (noise of 3.5 cm per joint), not some other pose
+    assert np.linalg.norm(projected - clean, axis=-1).mean() < 0.06
+
+
+def test_projection_leaves_a_pose_on_the_skeleton_unchanged() -> None:
+    skeleton = procedural_skeleton()
+    pose = _random_pose(skeleton, 10, 2)
+    projected = BoneProjection(skeleton)(torch.tensor(pose, dtype=torch.float32)).numpy()
+    np.testing.assert_allclose(projected, pose, atol=2e-5)
+
+
+def test_a_projected_pose_survives_ik_and_fk_exactly() -> None:
+    """What the BVH export does (IK to rotations, FK back) reproduces a projected pose."""
+    skeleton = procedural_skeleton()
+    noisy = _random_pose(skeleton, 15, 3) + np.random.default_rng(4).normal(scale=0.08, size=(15, 11, 3))
+    projected = BoneProjection(skeleton)(torch.tensor(noisy)).numpy()
+    rest, local, root, error = joints_to_rotations(Motion(projected.astype(np.float32), 20.0, skeleton))
+    np.testing.assert_allclose(fk_numpy(rest, local, root), projected, atol=1e-4)
+    assert error < 1e-4
+    # the raw (unprojected) pose is not held: IK moves it by centimetres
+    _, _, _, raw_error = joints_to_rotations(Motion(noisy.astype(np.float32), 20.0, skeleton))
+    assert raw_error > 0.01
+
+
+def test_projection_is_differentiable() -> None:
+    skeleton = procedural_skeleton()
+    x = torch.tensor(_random_pose(skeleton, 4, 5), dtype=torch.float32, requires_grad=True)
+    BoneProjection(skeleton)(x * 1.1).square().sum().backward()
+    assert x.grad is not None and torch.isfinite(x.grad).all() and x.grad.abs().sum() > 0
+
+
+def test_torch_forward_kinematics_matches_the_scipy_one() -> None:
+    skeleton = procedural_skeleton()
+    rng = np.random.default_rng(6)
+    rotations = Rotation.random(5 * 11, random_state=rng)
+    root = rng.normal(size=(5, 3))
+    expected = fk_numpy(skeleton, rotations.as_quat(scalar_first=True).reshape(5, 11, 4), root)
+    local = torch.tensor(rotations.as_matrix().reshape(5, 11, 3, 3))
+    got = forward_kinematics(local, torch.tensor(skeleton.offsets), skeleton.parents, torch.tensor(root))
+    np.testing.assert_allclose(got.numpy(), expected, atol=1e-10)
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_6d_rotations_are_the_first_two_matrix_columns(seed: int) -> None:
+    matrices = Rotation.random(8, random_state=seed).as_matrix()
+    d6 = torch.tensor(np.concatenate([matrices[..., 0], matrices[..., 1]], axis=-1) * 3.0)
+    np.testing.assert_allclose(rotation_6d_to_matrix(d6).numpy(), matrices, atol=1e-10)

@@ -1,0 +1,70 @@
+"""Decode-time foot clean-up: planted feet pinned to the floor with the leg re-solved by two-bone IK."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from engine.motion.ik import PLANT_RAMP, joints_to_rotations, plant_feet
+from engine.motion.motion import Motion
+from engine.motion.rotations import forward_kinematics
+from tests.engine.test_metrics_physics import FPS, OFFSETS, PARENTS, skeleton, standing
+
+FEET = [5, 6]  # Foot_L (ankle), Toes_L
+HEIGHTS = np.array([0.05, 0.0])  # their resting heights in ``standing``
+
+
+def _lengths(joints: np.ndarray) -> np.ndarray:
+    kids = np.flatnonzero(PARENTS >= 0)
+    return np.linalg.norm(joints[..., kids, :] - joints[..., PARENTS[kids], :], axis=-1)
+
+
+def _sliding(t: int = 40) -> np.ndarray:
+    """A body sliding 0.3 m/s along z with a bent knee (hip 0.85 m above the ankle) and the toe
+    hovering 1 cm above the floor; every bone at its rest length."""
+    clip = np.zeros((t, 7, 3))
+    slide = np.arange(t) * 0.3 / FPS - 0.2
+    ankle = np.stack([np.full(t, 0.1), np.full(t, 0.06), slide], axis=1)
+    hip = ankle + np.array([0.0, 0.85, 0.0])
+    clip[:, 3], clip[:, 5] = hip, ankle
+    clip[:, 4] = hip + np.array([0.0, -0.425, np.sqrt(0.45**2 - 0.425**2)])
+    clip[:, 6] = ankle + OFFSETS[6]
+    clip[:, 0] = hip - OFFSETS[3]
+    clip[:, 1] = clip[:, 0] + OFFSETS[1]
+    clip[:, 2] = clip[:, 1] + OFFSETS[2]
+    return clip
+
+
+def test_a_planted_sliding_foot_is_pinned_and_the_leg_keeps_its_bones() -> None:
+    clip = _sliding()
+    contact = np.zeros((1, 40, 2), bool)
+    contact[0, 10:30, 1] = True  # toe planted for a second
+    out = plant_feet(clip[None], contact, skeleton(), FEET, HEIGHTS)[0]
+    toe = out[10:30, 6]
+    assert np.ptp(toe[:, [0, 2]], axis=0).max() < 1e-9  # still on the floor plane
+    np.testing.assert_allclose(toe[:, 1], 0.0, atol=1e-9)  # at its resting height
+    np.testing.assert_allclose(toe[:, [0, 2]], np.broadcast_to(clip[10:30, 6, [0, 2]].mean(0), (20, 2)))
+    np.testing.assert_allclose(_lengths(out)[:, 2:], _lengths(clip)[:, 2:], atol=1e-9)  # leg bones kept
+    np.testing.assert_allclose(out[:, :4], clip[:, :4])  # hip and above untouched
+    far = list(range(0, 10 - PLANT_RAMP)) + list(range(30 + PLANT_RAMP, 40))
+    np.testing.assert_allclose(out[far], clip[far], atol=1e-9)  # away from the contact nothing moves
+    # the foot moves rigidly: the ankle-to-toe bone keeps its direction
+    np.testing.assert_allclose(out[:, 6] - out[:, 5], clip[:, 6] - clip[:, 5], atol=1e-9)
+
+
+def test_the_cleaned_leg_is_one_a_bvh_holds() -> None:
+    clip = _sliding()
+    contact = np.zeros((1, 40, 2), bool)
+    contact[0, 5:35, 1] = True
+    out = plant_feet(clip[None], contact, skeleton(), FEET, HEIGHTS)[0]
+    rest, local, root, _ = joints_to_rotations(Motion(out.astype(np.float32), FPS, skeleton()))
+    np.testing.assert_allclose(forward_kinematics(rest, local, root), out, atol=1e-5)
+
+
+def test_a_foot_under_the_floor_is_lifted_and_nothing_planted_moves_nothing() -> None:
+    clip = standing()
+    clip[:, 5:, 1] -= 0.04  # foot sunk 4 cm under its resting height
+    none = np.zeros((1, 40, 2), bool)
+    out = plant_feet(clip[None], none, skeleton(), FEET, HEIGHTS)[0]
+    assert (out[:, 6, 1] >= -1e-9).all() and (out[:, 5, 1] >= 0.05 - 1e-9).all()
+    clean = standing()
+    np.testing.assert_allclose(plant_feet(clean[None], none, skeleton(), FEET, HEIGHTS)[0], clean, atol=1e-9)
