@@ -142,18 +142,13 @@ def _dataset(args: argparse.Namespace) -> Dataset:
 
 
 def _cmd_train(args: argparse.Namespace) -> int:
-    if args.out.exists() and not args.out.is_dir():
-        raise ConfigError(f"{args.out}: exists and is not a folder; --out names the model folder to write")
-    with folder_lock(args.out, "training a model"):
-        return _train_locked(args)
-
-
-def _train_locked(args: argparse.Namespace) -> int:
     from engine.model.a2m import A2mConfig
     from engine.model.config import OdmoConfig
     from engine.train.a2m_loop import train_a2m
     from engine.train.loop import train
 
+    if args.out.exists() and not args.out.is_dir():
+        raise ConfigError(f"{args.out}: exists and is not a folder; --out names the model folder to write")
     dataset = _dataset(args)
     fields = {"n_actions": len(dataset.action_names), "n_joints": dataset.skeleton.n_joints}
     fields |= config_overrides(args.set)
@@ -168,17 +163,18 @@ def _train_locked(args: argparse.Namespace) -> int:
         raise ConfigError(f"bad {args.arch} setting: {exc}") from None
     progress = TqdmProgress()
     try:
-        result = (train_a2m if args.arch == "a2m" else train)(
-            dataset.clips,
-            dataset.action_names,
-            args.out,
-            config,
-            seed=args.seed,
-            device=args.device,
-            resume=args.resume,
-            progress=progress,
-            **extra,
-        )
+        with folder_lock(args.out, "training a model"):
+            result = (train_a2m if args.arch == "a2m" else train)(
+                dataset.clips,
+                dataset.action_names,
+                args.out,
+                config,
+                seed=args.seed,
+                device=args.device,
+                resume=args.resume,
+                progress=progress,
+                **extra,
+            )
     finally:
         progress.close()
     losses = " ".join(f"{k}={v:.4g}" for k, v in result.train_losses.items())
