@@ -144,6 +144,7 @@ def generated_motion(
         "end": None if end is None else [float(v) for v in end],
         "seed": seed,
         "model": str(loaded.path),
+        "model_sha256": getattr(loaded.bank, "weights_sha256", None) or None,
         **extra,
     }
     return Motion(joints, loaded.fps, loaded.skeleton, action=loaded.action_names[action], meta=meta)

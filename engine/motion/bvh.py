@@ -27,6 +27,7 @@ ours), ``Frame Time`` with 10 significant digits, written atomically.
 
 from __future__ import annotations
 
+import json
 import logging
 import re
 import warnings
@@ -406,13 +407,34 @@ def _unit_factor(
     return UNITS_TO_M[detected], detected
 
 
+#: Metadata of a generated motion kept beside its BVH (BVH has no comment syntax importers agree on).
+PROVENANCE_KEYS = ("model", "model_sha256", "code", "seed", "action", "mode", "end", "tool_version")
+PROVENANCE_FORMAT = "odmo-provenance"
+
+
+def provenance_path(path: str | Path) -> Path:
+    """The provenance sidecar of a BVH file: ``walk.bvh`` → ``walk.bvh.json``."""
+    return Path(f"{path}.json")
+
+
 def write_bvh(
     path: str | Path, motion: Motion, rotation_order: str = "ZXY", *, units: str = "m"
 ) -> dict[str, Any]:
-    """Write ``motion`` to a BVH file atomically; returns the report of :func:`format_bvh`."""
+    """Write ``motion`` to a BVH file atomically; returns the report of :func:`format_bvh`.
+
+    A generated motion (its ``meta`` names a model or a code) also gets ``provenance_path(path)``: JSON
+    with the model, code, seed, action, mode and end location that made it, which ``odmo info`` shows.
+    """
     text, report = format_bvh(motion, rotation_order, units=units)
     atomic_write_text(path, text)
     report["path"] = str(path)
+    if "model" in motion.meta or "code" in motion.meta:
+        from engine import __version__
+
+        facts = {k: motion.meta[k] for k in PROVENANCE_KEYS if k in motion.meta}
+        record = {"format": PROVENANCE_FORMAT, "file": Path(path).name, "tool_version": __version__} | facts
+        atomic_write_text(provenance_path(path), json.dumps(record, indent=2) + "\n")
+        report["provenance"] = str(provenance_path(path))
     return report
 
 

@@ -12,7 +12,8 @@ import pytest
 from engine.errors import ConfigError, ModelFormatError
 from engine.metrics.classifier import META_FILE, WEIGHTS_FILE, Classifier, load_classifier, train_classifier
 from engine.motion.motion import Motion
-from engine.train.windows import crop_windows, prepare_clips
+from engine.train.pairs import split_clips
+from engine.train.windows import crop_windows, every_window, prepare_clips, windows_at
 from tests.fixtures.procedural import PROCEDURAL_ACTIONS
 
 
@@ -39,6 +40,18 @@ def test_accuracy_well_above_chance(trained: tuple[Classifier, Path], procedural
     assert clf.test_accuracy >= 0.7  # chance is 1/3
     meta = json.loads((out / META_FILE).read_text())
     assert meta["test_accuracy"] == pytest.approx(clf.test_accuracy)
+    # held out: every window (stride 10) of the held-out clips, recounted here, and per action
+    prepared = prepare_clips(procedural_clips, PROCEDURAL_ACTIONS, 20.0, 60)
+    _, held = split_clips(prepared.actions, 0.25, 0)
+    rows = every_window(prepared, held, 10)
+    assert clf.n_test_windows == len(rows) == meta["n_test_windows"] > len(held)
+    batch = windows_at(prepared, rows[:, 0], rows[:, 1])
+    _, pred = clf.classify(batch.joints, batch.mask)
+    assert clf.test_accuracy == pytest.approx(np.mean(pred == batch.actions))
+    for a, name in enumerate(PROCEDURAL_ACTIONS):
+        wanted = batch.actions == a
+        assert clf.test_accuracy_per_action[name] == pytest.approx(np.mean(pred[wanted] == a))
+    assert load_classifier(out).test_accuracy_per_action == clf.test_accuracy_per_action
     batch = _windows(procedural_clips)
     _, pred = clf.classify(batch.joints, batch.mask)
     assert np.mean(pred == batch.actions) >= 0.8
@@ -96,3 +109,17 @@ def test_loading_is_strict(trained: tuple[Classifier, Path], tmp_path: Path) -> 
     for folder in (missing, newer, unknown, shape, corrupt, tmp_path / "nowhere"):
         with pytest.raises(ModelFormatError):
             load_classifier(folder)
+
+
+def test_every_window_starts_stride_apart_and_ends_at_the_last_frame(procedural_clips: list[Motion]) -> None:
+    prepared = prepare_clips(procedural_clips, PROCEDURAL_ACTIONS, 20.0, 60)
+    lengths = prepared.lengths
+    long, short = int(np.argmax(lengths)), int(np.argmin(lengths))
+    rows = every_window(prepared, [long, short], 10)
+    last = lengths[long] - 60
+    expected = sorted({*range(0, last + 1, 10), last})
+    assert rows[rows[:, 0] == long, 1].tolist() == expected
+    assert rows[rows[:, 0] == short, 1].tolist() == [0]  # shorter than a window: one, padded
+    batch = windows_at(prepared, rows[:, 0], rows[:, 1])
+    assert batch.mask[rows[:, 0] == long].all()
+    assert batch.mask[-1].sum() == min(lengths[short], 60)
