@@ -18,7 +18,6 @@ from PySide6.QtWidgets import QFileDialog
 
 from engine.errors import ConfigError, ModelFormatError, OdmoError
 from engine.motion.motion import Motion
-from explorer import export
 from explorer.main_window import MainWindow
 from explorer.map_layers import (
     META_PREFIX,
@@ -98,8 +97,10 @@ class Controller(QObject):
         self._live_details = False
         self._connect()
         from explorer.encoding import ClipEncoder
+        from explorer.exporting import Exporter
         from explorer.finding import Finder
 
+        self.exporter = Exporter(self)
         self.finder = Finder(self)
         self.encoder = ClipEncoder(self)
         self.state.events.embedding.connect(lambda _e: self.encoder.show())
@@ -136,10 +137,6 @@ class Controller(QObject):
         )
         w.open_model_action.triggered.connect(self._ask_model)
         w.open_data_action.triggered.connect(self._ask_data)
-        w.export_motion_action.triggered.connect(lambda: self._ask_export("motion"))
-        w.export_timelapse_action.triggered.connect(lambda: self._ask_export("timelapse"))
-        w.export_map_action.triggered.connect(lambda: self._ask_export("map"))
-        w.export_selection_action.triggered.connect(lambda: self._ask_export("selection"))
         w.play_selection_action.triggered.connect(self.play_selection)
         w.variations_action.triggered.connect(self.sample_variations)
         w.fit_mode_action.triggered.connect(self.fit_local_mode)
@@ -386,6 +383,8 @@ class Controller(QObject):
         index = self.window.projection_combo.findData(name)
         if index >= 0 and index != self.window.projection_combo.currentIndex():
             self.window.projection_combo.setCurrentIndex(index)
+        label = {"pca": "PCA", "tsne": "t-SNE", "umap": "UMAP"}.get(name, name)
+        self.window.latent_map.set_axis_names(f"{label} 1", f"{label} 2")
         if self.state.model is None:
             return
         self.state.marker = None
@@ -597,7 +596,7 @@ class Controller(QObject):
             for i in indices:
                 code, action, end = self.bank_item(i)
                 mode = None if labels[i] < 0 else int(labels[i])
-                motion = _decode_one(self.loaded, code, action, end, mode)
+                motion = decode_one(self.loaded, code, action, end, mode)
                 name = f"#{i} {bank.sources[i]}"
                 items.append(Decoded(motion, f"{name} (decoded)", code, action, end, mode, None, i, note))
                 clip = real.get(str(bank.sources[i])) if with_real else None
@@ -649,7 +648,7 @@ class Controller(QObject):
             e = _full_end(loaded, code, action, end)
             modes = bank.modes.get(action)
             mode = None if modes is None else int(modes.predict(code[None])[0])
-            motion = _decode_one(loaded, code, action, e, mode)
+            motion = decode_one(loaded, code, action, e, mode)
             return (Decoded(motion, label, code, action, e, mode),)
 
         return self.decoder.submit(job)
@@ -972,7 +971,7 @@ class Controller(QObject):
         played = self._played
         if played:
             length = max(m.n_frames for m in played)
-            self.window.viewport.frame_motion(_padded_frames(played, length))
+            self.window.viewport.frame_motion(padded_frames(played, length))
         else:
             self.window.viewport.reset_camera()
 
@@ -1012,9 +1011,9 @@ class Controller(QObject):
         if restart:
             w.timeline.set_frame(0)
             if not w.viewport.follow:
-                w.viewport.frame_motion(_padded_frames(played, length))
+                w.viewport.frame_motion(padded_frames(played, length))
         else:  # during a drag: re-aim only when the new motion leaves the view
-            w.viewport.keep_in_view(_padded_frames(played, length))
+            w.viewport.keep_in_view(padded_frames(played, length))
         self.state.frame = frame
         self._set_frame(frame)
         if restart or not w.timeline.is_playing():
@@ -1036,75 +1035,6 @@ class Controller(QObject):
         poses = np.stack([m.joints[min(frame, m.n_frames - 1)] for m in played])
         self.window.viewport.set_poses(poses)
 
-    # -- export --------------------------------------------------------------------------------------
-
-    def export_shown(self, path: str | Path) -> list[Path]:
-        """Write the motions shown in the viewport to ``path`` (BVH or NPZ; numbered when several)."""
-        return self._guard(
-            "Export failed", lambda: export.export_motions(self.state.shown, path, str(self.loaded.path))
-        )
-
-    def export_selection(self, path: str | Path) -> list[Path] | None:
-        """Decode every selected bank code and write them to ``path`` (numbered files)."""
-
-        def run() -> list[Path]:
-            loaded, bank = self.loaded, self.bank
-            if not self.state.selection:
-                raise ConfigError("nothing selected to export")
-            labels = mode_labels(bank)
-            items = []
-            for i in self.state.selection:
-                code, action, end = self.bank_item(i)
-                mode = None if labels[i] < 0 else int(labels[i])
-                motion = _decode_one(loaded, code, action, end, mode)
-                items.append(Decoded(motion, f"#{i} {bank.sources[i]}", code, action, end, mode, None, i))
-            return export.export_motions(items, path, str(loaded.path))
-
-        return self._guard("Export failed", run)
-
-    def export_map(self, path: str | Path) -> Path | None:
-        """Save the latent map as a PNG (projection, colouring and model in its text chunks)."""
-        meta = {
-            "model": str(self.state.model.path) if self.state.model else None,
-            "projection": self.state.projection,
-            "color_by": self.state.color_by,
-            "selection": list(self.state.selection),
-        }
-        return self._guard(
-            "Export failed", lambda: export.save_widget_png(self.window.latent_map, path, meta)
-        )
-
-    def export_timelapse(self, path: str | Path) -> Path | None:
-        """Save a time-lapse PNG strip of the first motion shown."""
-
-        def run() -> Path:
-            if not self.state.shown:
-                raise ConfigError("no motion is shown")
-            return export.save_timelapse(self.state.shown[0], path, str(self.loaded.path))
-
-        return self._guard("Export failed", run)
-
-    def _ask_export(self, what: str) -> None:
-        filters = {
-            "motion": "BVH (*.bvh);;NPZ (*.npz)",
-            "selection": "BVH (*.bvh);;NPZ (*.npz)",
-            "map": "PNG (*.png)",
-            "timelapse": "PNG (*.png)",
-        }
-        path, chosen = QFileDialog.getSaveFileName(self.window, f"Export {what}", "", filters[what])
-        if not path:
-            return
-        if not Path(path).suffix:
-            path += "." + chosen.split("*.")[-1].rstrip(")")
-        run = {
-            "motion": self.export_shown,
-            "selection": self.export_selection,
-            "map": self.export_map,
-            "timelapse": self.export_timelapse,
-        }[what]
-        if run(path):
-            self.window.show_status(f"Exported {what} to {path}")
-
     def _ask_model(self) -> None:
         path = QFileDialog.getExistingDirectory(self.window, "Open model folder")
         if path:
@@ -1123,7 +1053,7 @@ class Controller(QObject):
         self.tasks.shutdown()
 
 
-def _decode_one(
+def decode_one(
     loaded: LoadedModel, code: np.ndarray, action: int, end: np.ndarray | None, mode: int | None
 ) -> Motion:
     """``generate.decode`` with the end location passed as one row (a (3,) end gets broadcast read-only)."""
@@ -1169,7 +1099,7 @@ def _full_end(
     return None if rows is None else rows[0].astype(np.float32)
 
 
-def _padded_frames(motions: Sequence[Motion], length: int) -> np.ndarray:
+def padded_frames(motions: Sequence[Motion], length: int) -> np.ndarray:
     """(n, length, J, 3) joints of ``motions``, each padded with its last frame (for framing the view)."""
     return np.stack(
         [np.concatenate([m.joints, np.repeat(m.joints[-1:], length - m.n_frames, 0)]) for m in motions]

@@ -107,22 +107,40 @@ def timelapse_frames(n_frames: int, count: int) -> np.ndarray:
     return np.unique(np.round(np.linspace(0, n_frames - 1, count)).astype(int))
 
 
+TRAVEL_MIN_M = 0.3  # below this the poses are drawn one per panel (they would overlap on the path)
+
+
+def travel_direction(motion: Motion) -> tuple[np.ndarray, float]:
+    """Unit floor direction (x, z) from the root's first to last position, and that distance (m)."""
+    root = motion.joints[:, motion.skeleton.root][:, [0, 2]].astype(np.float64)
+    delta = root[-1] - root[0]
+    distance = float(np.linalg.norm(delta))
+    return (delta / distance if distance > 1e-9 else np.array([1.0, 0.0])), distance
+
+
 def timelapse_image(motion: Motion, count: int = 8, panel: int = 180, title: str = "") -> QImage:
-    """A strip of ``count`` poses of ``motion`` seen from the side (x right, y up), one panel each."""
+    """``count`` poses of ``motion`` seen from the side of its travel: a pose is drawn where the body is
+    along the path (the horizontal axis is the distance travelled), so the strip shows progress; a
+    motion that stays in place gets one panel per pose instead."""
     frames = timelapse_frames(motion.n_frames, count)
     joints = motion.joints[frames].astype(np.float64)
     parents = motion.skeleton.parents
-    # Centre each pose on its own root so the strip reads as poses; travel is written under each panel.
     root = motion.skeleton.root
-    centred = joints.copy()
-    centred[:, :, 0] -= joints[:, root : root + 1, 0]
+    direction, distance = travel_direction(motion)
+    along = joints[:, :, [0, 2]] @ direction  # (F, J) distance along the travel
+    along -= joints[:1, root, [0, 2]] @ direction
+    spread = distance >= TRAVEL_MIN_M
+    if not spread:  # one panel per pose, each centred on its root
+        along = along - along[:, root : root + 1] + (np.arange(len(frames)) * 1.0)[:, None]
     floor = float(min(0.0, motion.joints[:, :, 1].min()))
     height = max(float(motion.joints[:, :, 1].max()) - floor, 1e-3)
-    half_width = max(float(np.abs(centred[:, :, 0]).max()), 0.25 * height)
     header = 28 if title else 0
-    margin = 14
-    scale = (panel - 2 * margin - 18) / max(height, 2 * half_width)
-    image = QImage(panel * len(frames), panel + header, QImage.Format.Format_RGB32)
+    margin, footer = 14, 18
+    width_px = panel * len(frames)
+    span = max(float(along.max() - along.min()), 1e-3)
+    scale = min((width_px - 2 * margin - 40) / span, (panel - 2 * margin - footer) / height)
+    left = margin + 20 - float(along.min()) * scale
+    image = QImage(width_px, panel + header, QImage.Format.Format_RGB32)
     image.fill(QColor("#1e1f22"))
     painter = QPainter(image)
     painter.setRenderHint(QPainter.RenderHint.Antialiasing)
@@ -130,31 +148,32 @@ def timelapse_image(motion: Motion, count: int = 8, panel: int = 180, title: str
     if title:
         painter.setPen(QColor("#d0d0d0"))
         painter.drawText(8, 0, image.width() - 16, header, Qt.AlignmentFlag.AlignVCenter, title)
-    floor_y = header + panel - margin - 18
-    for k, (frame, pose) in enumerate(zip(frames, centred, strict=True)):
-        cx = k * panel + panel / 2
+    floor_y = header + panel - margin - footer
+    painter.setPen(QPen(QColor("#5a5d63"), 1))
+    painter.drawLine(QPointF(6, floor_y), QPointF(width_px - 6, floor_y))
+    for k, frame in enumerate(frames):
 
-        def to_px(p: np.ndarray, cx: float = cx) -> QPointF:
-            return QPointF(cx + p[0] * scale, floor_y - (p[1] - floor) * scale)
+        def to_px(j: int, k: int = k) -> QPointF:
+            return QPointF(left + along[k, j] * scale, floor_y - (joints[k, j, 1] - floor) * scale)
 
-        painter.setPen(QPen(QColor("#5a5d63"), 1))
-        painter.drawLine(QPointF(k * panel + 6, floor_y), QPointF((k + 1) * panel - 6, floor_y))
-        painter.setPen(QPen(QColor("#4e79a7"), 2.5))
+        shade = 0.45 + 0.55 * (k + 1) / len(frames)  # later poses brighter: the direction of time
+        bone = QColor.fromRgbF(0.31 * shade, 0.47 * shade, 0.65 * shade + 0.2 * (1 - shade))
+        painter.setPen(QPen(bone, 2.5))
         for j, p in enumerate(parents):
             if p >= 0:
-                painter.drawLine(to_px(pose[p]), to_px(pose[j]))
+                painter.drawLine(to_px(int(p)), to_px(j))
         painter.setPen(QPen(QColor("#f28e2b"), 4))
         for j in range(len(parents)):
-            painter.drawPoint(to_px(pose[j]))
+            painter.drawPoint(to_px(j))
         painter.setPen(QColor("#d0d0d0"))
+        x = to_px(root).x()
         painter.drawText(
-            int(k * panel),
-            int(floor_y + 2),
-            panel,
-            16,
-            Qt.AlignmentFlag.AlignCenter,
-            f"t={frame / motion.fps:.2f}s  x={joints[k, root, 0]:+.2f}m",
+            int(x - 40), int(floor_y + 2), 80, 16, Qt.AlignmentFlag.AlignCenter, f"{frame / motion.fps:.2f}s"
         )
+    if spread:
+        painter.setPen(QColor("#a0a0a0"))
+        painter.drawText(8, header + 4, width_px - 16, 16, Qt.AlignmentFlag.AlignRight,
+                         f"side view: {distance:.2f} m travelled →")  # fmt: skip
     painter.end()
     return image
 

@@ -188,6 +188,7 @@ class MainWindow(QMainWindow):
         self.export_motion_action.setShortcut(QKeySequence("Ctrl+E"))
         self.export_timelapse_action = file_menu.addAction("Export &time-lapse strip (PNG)…")
         self.export_map_action = file_menu.addAction("Export &map (PNG)…")
+        self.export_video_action = file_menu.addAction("Export 3-D &video (MP4 / GIF)…")
         file_menu.addSeparator()
         self.quit_action = file_menu.addAction("&Quit")
         self.quit_action.setShortcut(QKeySequence.Quit)

@@ -8,7 +8,7 @@ from typing import Literal
 import numpy as np
 import pyqtgraph as pg
 from PySide6.QtCore import QEvent, QObject, QPointF, Qt, Signal
-from PySide6.QtGui import QPixmap
+from PySide6.QtGui import QImage, QPixmap
 from PySide6.QtWidgets import (
     QButtonGroup,
     QCheckBox,
@@ -286,6 +286,27 @@ class LatentMap(QWidget):
             if x is not None
             else np.zeros((0, 2))
         )
+
+    def render_plot(self, width: int | None = None) -> QImage:
+        """The plot alone (points, overlays, axes with their names; no tool buttons, legend or key) as an
+        image ``width`` pixels wide (default: its size on screen), height in proportion."""
+        from pyqtgraph.exporters import ImageExporter
+
+        exporter = ImageExporter(self.plot.getPlotItem())
+        if width is not None:
+            exporter.parameters()["width"] = int(width)
+        return exporter.export(toBytes=True)
+
+    def set_axis_names(self, x: str, y: str) -> None:
+        """Name the map's axes (e.g. "PCA 1", "PCA 2")."""
+        item = self.plot.getPlotItem()
+        item.setLabel("bottom", x)
+        item.setLabel("left", y)
+
+    def axis_names(self) -> tuple[str, str]:
+        """The axis names shown."""
+        item = self.plot.getPlotItem()
+        return item.getAxis("bottom").labelText, item.getAxis("left").labelText
 
     def set_legend(
         self, names: Sequence[str], colors: Sequence[object], groups: np.ndarray | None = None

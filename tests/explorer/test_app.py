@@ -25,7 +25,7 @@ def test_export_npz_and_bvh_read_back_with_provenance(qtbot, explorer: Opened, t
     c = explorer.controller
     _show_bank_code(qtbot, explorer, 3)
     shown = c.state.shown[0]
-    [npz] = c.export_shown(tmp_path / "clip.npz")
+    [npz] = c.exporter.export_shown(tmp_path / "clip.npz")
     back = Motion.from_file(npz)
     np.testing.assert_allclose(back.joints, shown.motion.joints, atol=1e-6)
     assert back.meta["code"] == pytest.approx([float(v) for v in c.bank.codes[3]])
@@ -33,7 +33,7 @@ def test_export_npz_and_bvh_read_back_with_provenance(qtbot, explorer: Opened, t
     assert back.meta["model"] == str(c.loaded.path)
     assert back.meta["end"] == pytest.approx([float(v) for v in c.bank.ends[3]])
     assert back.meta["bank_index"] == 3
-    [bvh] = c.export_shown(tmp_path / "clip.bvh")
+    [bvh] = c.exporter.export_shown(tmp_path / "clip.bvh")
     read = Motion.from_file(bvh)
     assert read.n_frames == shown.motion.n_frames
     assert read.skeleton.same_topology(shown.motion.skeleton)
@@ -44,7 +44,7 @@ def test_export_npz_and_bvh_read_back_with_provenance(qtbot, explorer: Opened, t
 def test_export_selection_writes_one_file_per_code(qtbot, explorer: Opened, tmp_path: Path) -> None:
     c = explorer.controller
     c.state.selection = (0, 5, 7)
-    written = c.export_selection(tmp_path / "sel.npz")
+    written = c.exporter.export_selection(tmp_path / "sel.npz")
     assert [p.name for p in written] == ["sel_000.npz", "sel_001.npz", "sel_002.npz"]
     assert [Motion.from_file(p).meta["bank_index"] for p in written] == [0, 5, 7]
 
@@ -56,10 +56,10 @@ def test_failed_export_shows_error_and_leaves_nothing(qtbot, explorer: Opened, t
     blocked.write_text("not a folder")
     before = sorted(tmp_path.iterdir())
     with qtbot.waitSignal(c.errorOccurred, timeout=5_000) as blocker:
-        assert c.export_shown(blocked / "clip.bvh") is None
+        assert c.exporter.export_shown(blocked / "clip.bvh") is None
     assert "clip.bvh" in blocker.args[0] or "file" in blocker.args[0]
     with qtbot.waitSignal(c.errorOccurred, timeout=5_000):
-        c.export_shown(tmp_path / "clip.txt")
+        c.exporter.export_shown(tmp_path / "clip.txt")
     assert sorted(tmp_path.iterdir()) == before
     assert close_message_boxes()
 
@@ -67,8 +67,8 @@ def test_failed_export_shows_error_and_leaves_nothing(qtbot, explorer: Opened, t
 def test_map_and_timelapse_pngs_carry_metadata(qtbot, explorer: Opened, tmp_path: Path) -> None:
     c = explorer.controller
     _show_bank_code(qtbot, explorer, 2)
-    map_png = c.export_map(tmp_path / "map.png")
-    strip_png = c.export_timelapse(tmp_path / "strip.png")
+    map_png = c.exporter.export_map(tmp_path / "map.png")
+    strip_png = c.exporter.export_timelapse(tmp_path / "strip.png")
     image = QImage(str(map_png))
     assert image.width() > 100 and image.text("projection") == "pca"
     strip = QImage(str(strip_png))
