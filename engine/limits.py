@@ -59,13 +59,24 @@ def max_file_bytes() -> int:
 def check_file_size(path: str | Path, what: str = "file") -> int:
     """The size of ``path`` in bytes; TooLargeError naming it when it is over the file limit."""
     size = os.stat(path).st_size
+    _refuse_over_limit(path, size, what)
+    return size
+
+
+def _refuse_over_limit(path: str | Path, size: int, what: str) -> None:
     limit = max_file_bytes()
     if size > limit:
         raise TooLargeError(
             f"{path}: {what} of {size / 2**20:,.0f} MB is over the {limit / 2**20:,.0f} MB limit "
             "(set ODMO_MAX_FILE_MB to raise it)"
         )
-    return size
+
+
+def read_bytes(path: str | Path, what: str = "file") -> bytes:
+    """The bytes of ``path``, refused (TooLargeError) without reading when it is over the file limit."""
+    with open(path, "rb") as handle:
+        _refuse_over_limit(path, os.fstat(handle.fileno()).st_size, what)
+        return handle.read()
 
 
 def check_sizes(kind: str, values: Mapping[str, object]) -> None:

@@ -17,7 +17,7 @@ from safetensors.torch import save as save_safetensors
 
 from engine.errors import ConfigError, ModelFormatError
 from engine.fileio import atomic_write_bytes, atomic_write_text
-from engine.limits import check_file_size
+from engine.limits import read_bytes
 from engine.model.config import OdmoConfig
 from engine.model.odmo import OdmoModel
 from engine.motion.skeleton import Skeleton
@@ -147,8 +147,7 @@ def _sha256(data: bytes) -> str:
 def _read_bytes(path: Path, what: str) -> bytes:
     """The bytes of a model-folder file, refused over the file-size limit."""
     try:
-        check_file_size(path, what)
-        return path.read_bytes()
+        return read_bytes(path, what)
     except FileNotFoundError:
         raise ModelFormatError(f"{path}: missing {what} file") from None
     except OSError as exc:

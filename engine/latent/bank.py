@@ -17,7 +17,7 @@ from engine.fileio import atomic_write_bytes
 from engine.latent.geometry import NeighbourBlend
 from engine.latent.modes import ModeModel, discover_modes
 from engine.latent.projection import Projection, make_projection
-from engine.limits import check_file_size
+from engine.limits import read_bytes
 from engine.npyio import load_npz
 
 log = logging.getLogger(__name__)
@@ -108,8 +108,7 @@ class LatentBank:
     def load(cls, path: str | Path) -> LatentBank:
         """Read a bank written by :meth:`save`; ModelFormatError for missing, corrupt or newer files."""
         try:
-            check_file_size(path, "latent bank")
-            data = Path(path).read_bytes()
+            data = read_bytes(path, "latent bank")
         except FileNotFoundError as exc:
             raise ModelFormatError(f"{path}: latent bank not found") from exc
         except OSError as exc:

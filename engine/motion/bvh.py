@@ -41,7 +41,7 @@ import numpy as np
 
 from engine.errors import ConfigError, MotionFormatError
 from engine.fileio import atomic_write_text
-from engine.limits import check_file_size
+from engine.limits import read_bytes
 from engine.motion.axes import check_up_axis, to_y_up
 from engine.motion.motion import Motion
 from engine.motion.rotations import euler_to_quat, forward_kinematics, quat_continuity, quat_to_euler
@@ -121,8 +121,7 @@ class _Tokens:
 def read_bvh(path: str | Path, units: str = "auto", scale: float | None = None, up_axis: str = "y") -> Motion:
     """Read a BVH file into a Motion in metres, Y up (see the module docstring for the conventions)."""
     try:
-        check_file_size(path, "BVH file")
-        data = Path(path).read_bytes()
+        data = read_bytes(path, "BVH file")
     except OSError as exc:
         raise MotionFormatError(f"cannot read the file: {exc.strerror or exc}", path) from None
     return parse_bvh_text(_decode(data, str(path)), str(path), units=units, scale=scale, up_axis=up_axis)

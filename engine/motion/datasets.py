@@ -42,7 +42,7 @@ import numpy as np
 
 from engine.errors import CancelledError, ConfigError, DataError, OdmoError
 from engine.fileio import atomic_write
-from engine.limits import check_file_size
+from engine.limits import check_file_size, read_bytes
 from engine.motion.axes import check_up_axis
 from engine.motion.motion import Motion
 from engine.motion.skeleton import Skeleton
@@ -297,8 +297,7 @@ def _load_clip(entry: _Entry, store: _Cache | None, drop: Sequence[str], up_axis
     from engine.motion.formats import read_motion
 
     try:
-        check_file_size(entry.path, "motion file")
-        data = entry.path.read_bytes()
+        data = read_bytes(entry.path, "motion file")
     except OSError as exc:
         raise DataError(f"cannot read ({exc})") from None
     digest = hashlib.blake2b(data, digest_size=16).hexdigest()
@@ -401,19 +400,51 @@ def _write_cache(path: Path, entries: dict[str, _Parsed]) -> None:
             len(skeletons), len(first.end_sites), 3
         ),
         "units": np.asarray([skel.units for skel in skeletons], dtype=np.str_),
-        "checks": np.array([_entry_check(*entry) for entry in parsed], dtype=np.uint32),
     }
+    bounds, topology = np.concatenate([[0], np.cumsum(arrays["frames"])]), _topology(arrays)
+    arrays["checks"] = np.array(
+        [
+            _entry_check(
+                arrays["joints"][bounds[i] : bounds[i + 1]],
+                _entry_key(arrays["offsets"][i], arrays["site_offsets"][i], str(arrays["units"][i])),
+                float(arrays["fps"][i]),
+                topology,
+            )
+            for i in range(len(parsed))
+        ],
+        dtype=np.uint32,
+    )
+    arrays["whole_check"] = np.asarray(_whole_check(arrays), dtype=np.uint32)
     with atomic_write(path, "wb") as handle:
         np.savez(handle, **arrays)
 
 
-def _entry_check(joints: np.ndarray, fps: float, skeleton: Skeleton) -> int:
-    """CRC-32 of one cache entry's content: joints, fps, offsets, End Sites and units."""
-    crc = zlib.crc32(np.ascontiguousarray(joints, dtype=np.float32))
-    crc = zlib.crc32(np.asarray([fps], dtype=np.float64), crc)
-    crc = zlib.crc32(np.ascontiguousarray(skeleton.offsets, dtype=np.float64), crc)
-    sites = np.asarray([o for _, o in skeleton.end_sites], dtype=np.float64)
-    return zlib.crc32(skeleton.units.encode(), zlib.crc32(sites, crc))
+def _entry_key(offsets: np.ndarray, site_offsets: np.ndarray, units: str) -> bytes:
+    """The bytes that identify one entry's skeleton (its rest offsets, End Sites and units)."""
+    return offsets.tobytes() + site_offsets.tobytes() + units.encode()
+
+
+def _topology(arrays: dict[str, np.ndarray]) -> bytes:
+    """The bytes of the joint tree every entry shares: names, parents and End Site parents."""
+    return (
+        "\n".join(arrays["names"].tolist()).encode()
+        + arrays["parents"].tobytes()
+        + arrays["site_parents"].tobytes()
+    )
+
+
+def _whole_check(arrays: dict[str, np.ndarray]) -> int:
+    """CRC-32 of everything the entries are built from, in one pass (the check of an intact cache)."""
+    crc = zlib.crc32(np.ascontiguousarray(arrays["joints"]))
+    for key in ("frames", "fps", "offsets", "site_offsets", "units", "digests", "checks"):
+        crc = zlib.crc32(np.ascontiguousarray(arrays[key]), crc)
+    return zlib.crc32(_topology(arrays), crc)
+
+
+def _entry_check(joints: np.ndarray, key: bytes, fps: float, topology: bytes) -> int:
+    """CRC-32 of one cache entry's content: joints, skeleton key, fps and the shared joint tree."""
+    crc = zlib.crc32(np.ascontiguousarray(joints))
+    return zlib.crc32(topology + key + np.float64(fps).tobytes(), crc)
 
 
 def _read_cache(path: Path) -> tuple[dict[str, _Parsed], int]:
@@ -425,12 +456,17 @@ def _read_cache(path: Path) -> tuple[dict[str, _Parsed], int]:
     names = tuple(data["names"].tolist())
     site_parents = data["site_parents"].tolist()
     bounds = np.concatenate([[0], np.cumsum(data["frames"])])
-    checks = data["checks"]
+    checks, topology = data["checks"], _topology(data)
+    intact = _whole_check(data) == int(data["whole_check"])  # else find the damaged entries one by one
     skeletons: dict[bytes, Skeleton] = {}  # clips of one performer share one Skeleton object
     entries, damaged = {}, 0
     for i, digest in enumerate(data["digests"].tolist()):
         offsets, site_offsets, units = data["offsets"][i], data["site_offsets"][i], str(data["units"][i])
-        key = offsets.tobytes() + site_offsets.tobytes() + units.encode()
+        key = _entry_key(offsets, site_offsets, units)
+        joints, fps = data["joints"][bounds[i] : bounds[i + 1]], float(data["fps"][i])
+        if not intact and _entry_check(joints, key, fps, topology) != int(checks[i]):
+            damaged += 1
+            continue
         try:
             if key not in skeletons:
                 sites = tuple(
@@ -439,10 +475,6 @@ def _read_cache(path: Path) -> tuple[dict[str, _Parsed], int]:
                 )
                 skeletons[key] = Skeleton(names, data["parents"], offsets, sites, units)
         except OdmoError:
-            damaged += 1
-            continue
-        joints, fps = data["joints"][bounds[i] : bounds[i + 1]], float(data["fps"][i])
-        if _entry_check(joints, fps, skeletons[key]) != int(checks[i]):
             damaged += 1
             continue
         entries[digest] = (joints, fps, skeletons[key])

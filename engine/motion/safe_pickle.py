@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 
 from engine.errors import MotionFormatError, OdmoError
-from engine.limits import check_file_size
+from engine.limits import read_bytes
 
 _LIMIT: contextvars.ContextVar[int] = contextvars.ContextVar("pickle_array_limit", default=0)
 
@@ -101,8 +101,7 @@ def load_data_pickle(path: str | Path) -> Any:
     """Unpickle ``path`` allowing only data (numpy arrays and dtypes, lists, dicts, tuples, numbers, str)."""
     path = Path(path)
     try:
-        check_file_size(path, "pickle")
-        data = path.read_bytes()
+        data = read_bytes(path, "pickle")
     except OSError as exc:
         raise MotionFormatError(f"cannot read ({exc.strerror or exc})", path) from None
     token = _LIMIT.set(max(len(data), 1))

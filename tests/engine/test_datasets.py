@@ -230,6 +230,12 @@ def _nan_joints(arrays: dict) -> None:
     arrays["joints"][5] = np.nan
 
 
+def _rename_joint(arrays: dict) -> None:
+    names = arrays["names"].tolist()
+    names[1] = "Renamed"
+    arrays["names"] = np.asarray(names)
+
+
 def _flip_bytes(path: Path) -> None:
     data = bytearray(path.read_bytes())
     middle = len(data) // 2
@@ -242,11 +248,12 @@ def _flip_bytes(path: Path) -> None:
     [
         lambda p: _rewrite_cache(p, _zero_joints),
         lambda p: _rewrite_cache(p, _nan_joints),
+        lambda p: _rewrite_cache(p, _rename_joint),
         _flip_bytes,
         lambda p: p.write_bytes(p.read_bytes()[: p.stat().st_size // 3]),
         lambda p: p.write_bytes(b"not a zip at all"),
     ],
-    ids=["zeroed-joints", "nan-joints", "flipped-bytes", "truncated", "junk"],
+    ids=["zeroed-joints", "nan-joints", "renamed-joint", "flipped-bytes", "truncated", "junk"],
 )
 def test_damaged_cache_is_rebuilt_from_the_source_files(
     mini_bandai: Path, private_cache: Path, damage, caplog: pytest.LogCaptureFixture
@@ -260,6 +267,7 @@ def test_damaged_cache_is_rebuilt_from_the_source_files(
     assert again.fingerprint == fresh.fingerprint
     for a, b in zip(fresh.clips, again.clips, strict=True):
         np.testing.assert_array_equal(a.joints, b.joints)
+        assert a.skeleton.names == b.skeleton.names
     caplog.clear()
     with caplog.at_level("WARNING", logger="engine.motion.datasets"):
         third = load_folder(mini_bandai)  # the rebuilt cache is clean again
