@@ -32,6 +32,7 @@ from bench._report import machine
 from bench.heldout import HELDOUT_FRACTION, SPLIT_SEED, heldout_split
 from engine.a2m_io import LoadedA2m, load_a2m
 from engine.fileio import atomic_write_text
+from engine.generate._decode import decode_tensors
 from engine.metrics.a2m_eval import evaluate_a2m
 from engine.metrics.classifier import Classifier, load_classifier, train_classifier
 from engine.metrics.evaluate import evaluate
@@ -61,6 +62,7 @@ ROWS = {
     "odmo_push_only": "ODMO, contrastive push only (no same-action pull)",
     "odmo_push_bf16": "ODMO, contrastive push only, trained under bfloat16 autocast",
     "odmo_default": "ODMO, the bundled default model (its own budget and settings)",
+    "odmo_previous": "ODMO, a given earlier model folder (--previous)",
     "a2m": "Action2Motion (joint positions)",
 }
 ODMO_VARIANTS: dict[str, dict[str, Any]] = {
@@ -82,6 +84,23 @@ COLUMNS = (
     ("Style ARI", "style_ari", 3),
     ("End error (m)", "end_error_m", 3),
     ("Recon. error (m)", "reconstruction_error_m", 4),
+    ("Bone cv ↓", "bone_length_cv", 4),
+    ("Foot skate (m/s) →", "foot_skate_m_s", 3),
+    ("Under floor →", "floor_penetration", 3),
+    ("Floating →", "float_share", 3),
+    ("Hand speed (m/s) →", "hand_speed_m_s", 3),
+    ("Jerk (m/s³) →", "jerk_m_s3", 0),
+)
+# Per-action table of the first row against real: (header, metric key, decimals).
+PER_ACTION_COLUMNS = (
+    ("hand speed (m/s)", "hand_speed_m_s", 2),
+    ("hand amp. (m)", "hand_amplitude_m", 3),
+    ("foot speed (m/s)", "foot_speed_m_s", 2),
+    ("foot amp. (m)", "foot_amplitude_m", 3),
+    ("jerk (m/s³)", "jerk_m_s3", 0),
+    ("bone cv", "bone_length_cv", 4),
+    ("foot skate (m/s)", "foot_skate_m_s", 3),
+    ("floating", "float_share", 2),
 )
 
 
@@ -100,7 +119,27 @@ def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
     p.add_argument("--n-per-action", type=int, default=50)
     p.add_argument("--device", default="auto")
     p.add_argument("--threads", type=int, default=1, help="torch threads")
-    return p.parse_args(argv)
+    p.add_argument(
+        "--rows", default=",".join(ROWS), help=f"comma-separated rows to make (default all: {','.join(ROWS)})"
+    )
+    p.add_argument("--previous", type=Path, help="an earlier model folder for the odmo_previous row")
+    p.add_argument("--previous-label", default=None, help="what the odmo_previous row is called")
+    args = p.parse_args(argv)
+    args.rows = [r.strip() for r in args.rows.split(",") if r.strip()]
+    unknown = sorted(set(args.rows) - set(ROWS))
+    if unknown:
+        p.error(f"unknown rows {', '.join(unknown)}; choose from {', '.join(ROWS)}")
+    if "odmo_previous" in args.rows and args.previous is None:
+        p.error("the odmo_previous row needs --previous DIR")
+    return args
+
+
+def shown(path: Path) -> str:
+    """``path`` relative to the repository when inside it, else its last two parts (no machine paths)."""
+    try:
+        return str(Path(path).resolve().relative_to(REPO))
+    except ValueError:
+        return str(Path(*Path(path).parts[-2:]))
 
 
 def _cell(block: dict[str, dict[str, float]], key: str, decimals: int) -> str:
@@ -111,8 +150,32 @@ def _cell(block: dict[str, dict[str, float]], key: str, decimals: int) -> str:
     return f"{value['mean']:.{decimals}f} ± {value['ci95']:.{decimals}f}"
 
 
+def per_action_markdown(per_action: dict[str, Any], label: str) -> list[str]:
+    """Markdown lines: the per-action physical figures of one row, generated / real."""
+    if not per_action:
+        return []
+    lines = [
+        f"## Per action: {label} / real",
+        "",
+        "| action | " + " | ".join(h for h, _, _ in PER_ACTION_COLUMNS) + " |",
+    ]
+    lines.append("|---|" + "|".join("---" for _ in PER_ACTION_COLUMNS) + "|")
+    for action, sides in per_action.items():
+        cells = []
+        for _, key, d in PER_ACTION_COLUMNS:
+            gen, real = sides["generated"].get(key), sides["real"].get(key)
+            cells.append(
+                "n/a" if gen is None or real is None else f"{gen['mean']:.{d}f} / {real['mean']:.{d}f}"
+            )
+        lines.append(f"| {action} | " + " | ".join(cells) + " |")
+    return [*lines, ""]
+
+
 def results_markdown(
-    real: dict[str, dict[str, float]], entries: Sequence[dict[str, Any]], info: dict[str, str]
+    real: dict[str, dict[str, float]],
+    entries: Sequence[dict[str, Any]],
+    info: dict[str, str],
+    labels: dict[str, str] | None = None,
 ) -> str:
     """RESULTS.md: the table (real row, then one row per entry) and the bullet list ``info``.
 
@@ -130,15 +193,21 @@ def results_markdown(
         "| Model | " + " | ".join(headers) + " |",
         "|---|" + "|".join("---" for _ in headers) + "|",
     ]
+    names = ROWS | (labels or {})
     rows = [("Real motions", real, None)]
-    rows += [(ROWS[e["row"]], e["generated"], e.get("speed")) for e in entries]
+    rows += [(names[e["row"]], e["generated"], e.get("speed")) for e in entries]
     for name, block, speed in rows:
         cells = [_cell(block, key, d) for _, key, d in COLUMNS]
         if name == "Real motions":
             cells[[k for _, k, _ in COLUMNS].index("reconstruction_error_m")] = "n/a"
         cells.append("n/a" if speed is None else f"{speed:.0f}")
         lines.append(f"| {name} | " + " | ".join(cells) + " |")
-    lines += ["", "## How it was made", ""]
+    lines.append("")
+    for entry in entries:
+        if entry.get("per_action"):
+            lines += per_action_markdown(entry["per_action"], names[entry["row"]])
+            break
+    lines += ["## How it was made", ""]
     lines += [f"- **{key}**: {value}" for key, value in info.items()]
     return "\n".join(lines) + "\n"
 
@@ -220,8 +289,7 @@ def odmo_decoder(loaded: LoadedModel) -> Callable[[], None]:
     )
 
     def decode() -> None:
-        with torch.inference_mode():
-            loaded.model.decode(z, actions, ends)
+        decode_tensors(loaded, z, actions, ends)  # bone projection and foot clean-up included
 
     return decode
 
@@ -260,13 +328,16 @@ def main(argv: Sequence[str] | None = None) -> int:
 
     folders: dict[str, Path] = {}
     notes: dict[str, str] = {}
+    wanted = set(args.rows)
     for key, changes in ODMO_VARIANTS.items():
+        if key not in wanted and not (key == "odmo" and "odmo_conv" in wanted):
+            continue
         config = OdmoConfig(n_actions=len(names), n_joints=skeleton.n_joints, epochs=args.epochs, **changes)
         folder = args.runs / key
         if key == "odmo" and _default_matches(config, fingerprint, args.seed):
-            folder, notes[key] = DEFAULT_MODEL, f"reused the default model {DEFAULT_MODEL.relative_to(REPO)}"
+            folder, notes[key] = DEFAULT_MODEL, f"reused the default model {shown(DEFAULT_MODEL)}"
         elif args.reuse and _finished(folder, args.epochs):
-            notes[key] = f"reused {folder}"
+            notes[key] = f"reused {shown(folder)}"
         else:
             bar, show = _bar(key, config.epochs)
             train(
@@ -274,27 +345,34 @@ def main(argv: Sequence[str] | None = None) -> int:
                 progress=show, bank_projections=("pca",),
             )  # fmt: skip
             bar.close()
-            notes[key] = f"trained into {folder}"
+            notes[key] = f"trained into {shown(folder)}"
         folders[key] = folder
-    if DEFAULT_MODEL not in folders.values() and _default_matches(None, fingerprint, args.seed):
+    default_wanted = "odmo_default" in wanted and DEFAULT_MODEL not in folders.values()
+    if default_wanted and _default_matches(None, fingerprint, args.seed):
         folders["odmo_default"] = DEFAULT_MODEL
         epochs = json.loads((DEFAULT_MODEL / META_FILE).read_text())["provenance"]["epochs"]
         notes["odmo_default"] = (
-            f"{DEFAULT_MODEL.relative_to(REPO)}, trained {epochs} epochs by bench/train_default.py "
+            f"{shown(DEFAULT_MODEL)}, trained {epochs} epochs by bench/train_default.py "
             "(its MODEL_CARD.md has the command and settings)"
         )
+    labels = {}
+    if "odmo_previous" in wanted:
+        folders["odmo_previous"] = args.previous
+        labels["odmo_previous"] = args.previous_label or ROWS["odmo_previous"]
+        notes["odmo_previous"] = f"evaluated as it is ({shown(args.previous)})"
     a2m_config = A2mConfig(n_actions=len(names), n_joints=skeleton.n_joints, epochs=args.epochs)
-    folders["a2m"] = args.runs / "a2m"
-    if args.reuse and _finished(folders["a2m"], args.epochs):
-        notes["a2m"] = f"reused {folders['a2m']}"
-    else:
-        bar, show = _bar("a2m", a2m_config.epochs)
-        train_a2m(
-            train_clips, names, folders["a2m"], a2m_config, seed=args.seed, device=args.device,
-            resume=args.reuse, progress=show,
-        )  # fmt: skip
-        bar.close()
-        notes["a2m"] = f"trained into {folders['a2m']}"
+    if "a2m" in wanted:
+        folders["a2m"] = args.runs / "a2m"
+        if args.reuse and _finished(folders["a2m"], args.epochs):
+            notes["a2m"] = f"reused {shown(folders['a2m'])}"
+        else:
+            bar, show = _bar("a2m", a2m_config.epochs)
+            train_a2m(
+                train_clips, names, folders["a2m"], a2m_config, seed=args.seed, device=args.device,
+                resume=args.reuse, progress=show,
+            )  # fmt: skip
+            bar.close()
+            notes["a2m"] = f"trained into {shown(folders['a2m'])}"
 
     entries: list[dict[str, Any]] = []
     decoders: dict[str, Callable[[], None]] = {}
@@ -307,31 +385,34 @@ def main(argv: Sequence[str] | None = None) -> int:
         ("odmo_push_only", "odmo_push_only", "mode_preserving"),
         ("odmo_push_bf16", "odmo_push_bf16", "mode_preserving"),
         ("odmo_default", "odmo_default", "mode_preserving"),
+        ("odmo_previous", "odmo_previous", "mode_preserving"),
     ):
-        if key not in folders:
+        if key not in folders or row not in wanted:
             continue
         loaded = load_model(folders[key], device="cpu")
         report = evaluate(loaded, test_clips, classifier, strategy=strategy, **evaluation)
         atomic_write_text(args.runs / f"eval_{row}.json", json.dumps(report, indent=2))
         real = real or report["real"]
         _check_same_real(real, report["real"], row)
-        entries.append({"row": row, "generated": report["generated"]})
+        entries.append({"row": row, "generated": report["generated"], "per_action": report["per_action"]})
         decoders[row] = odmo_decoder(loaded)
         log.info("%s evaluated", row)
-    a2m = load_a2m(folders["a2m"], device="cpu")
-    report = evaluate_a2m(a2m, test_clips, classifier, **evaluation)
-    atomic_write_text(args.runs / "eval_a2m.json", json.dumps(report, indent=2))
-    _check_same_real(real, report["real"], "a2m")
-    entries.append({"row": "a2m", "generated": report["generated"]})
-    decoders["a2m"] = a2m_decoder(a2m)
+    if "a2m" in folders:
+        a2m = load_a2m(folders["a2m"], device="cpu")
+        report = evaluate_a2m(a2m, test_clips, classifier, **evaluation)
+        atomic_write_text(args.runs / "eval_a2m.json", json.dumps(report, indent=2))
+        real = real or report["real"]
+        _check_same_real(real, report["real"], "a2m")
+        entries.append({"row": "a2m", "generated": report["generated"]})
+        decoders["a2m"] = a2m_decoder(a2m)
     measured = speeds(decoders)
     for entry in entries:
         entry["speed"] = measured[entry["row"]]
 
     windows = f"{a2m_config.epoch_size:,}"
     info = {
-        "Data": f"`{args.data}`: {len(dataset.clips)} clips, {len(names)} actions ({', '.join(names)}), "
-        f"{skeleton.n_joints} joints, windows of 60 frames at 20 fps",
+        "Data": f"`{shown(args.data)}`: {len(dataset.clips)} clips, {len(names)} actions "
+        f"({', '.join(names)}), {skeleton.n_joints} joints, windows of 60 frames at 20 fps",
         "Split": f"`bench/heldout.py`: {HELDOUT_FRACTION:.0%} of the clips of every action × style held out "
         f"(seed {SPLIT_SEED}): {len(train_clips)} train, {len(test_clips)} held-out; every model also keeps "
         "10 % of its train clips for validation (seed of the model)",
@@ -345,8 +426,23 @@ def main(argv: Sequence[str] | None = None) -> int:
         "Models": "; ".join(f"{ROWS[k]}: {v}" for k, v in notes.items()),
         "Seeds": f"training seed {args.seed}; evaluation seed {args.seed} "
         f"({args.repeats} repeats × {args.n_per_action} motions per action, repeat r uses rng [seed, r])",
-        "Classifier": f"`{classifier.path}` (held-out accuracy {classifier.test_accuracy:.3f}); the same "
-        "classifier and real sets for every row",
+        "Classifier": f"`{shown(classifier.path)}`: accuracy {classifier.test_accuracy:.3f} on every window "
+        f"(stride {classifier.config.stride}) of {classifier.n_test} held-out training-side clips; "
+        "per action "
+        + ", ".join(f"{a} {v:.3f}" for a, v in classifier.test_accuracy_per_action.items())
+        + "; the same classifier and real sets for every row",
+        "Physical figures": "`engine.metrics.physics` at display height (floor y = 0): worst-bone length "
+        "std/mean per clip (median), horizontal speed of foot joints planted within 3 cm of the clip's "
+        "lowest foot height, share of frames with the lowest foot joint > 2 cm under the floor, share of "
+        "clips whose feet stay > 10 cm up for 0.5 s, mean hand speed, mean jerk of every joint",
+        "Rows": "this run made "
+        + ", ".join(ROWS[k] if k not in labels else labels[k] for k in args.rows)
+        + (
+            "; rows not listed were not re-run (the previous full table, with the earlier classifier, is in "
+            "this file's git history)"
+            if set(args.rows) != set(ROWS) - {"odmo_previous"}
+            else ""
+        ),
         "Reconstruction": "ODMO: encode → decode with the true action and end location; A2M: posterior means "
         "z_1..z_T of the real window, decoded free-running (A2M: a 30-d code per frame; ODMO: one 20-d code)",
         "Decode speed": f"motions/s at batch {SPEED_BATCH}, median of 20 rounds that time every row in "
@@ -363,7 +459,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         f"--seed {args.seed}` "
         "(add `--reuse` to keep trained models; the classifier is the shipped one when present)",
     }
-    atomic_write_text(args.results, results_markdown(real, entries, info))
+    atomic_write_text(args.results, results_markdown(real, entries, info, labels))
     print(f"wrote {args.results}")
     return 0
 

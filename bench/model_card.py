@@ -21,7 +21,29 @@ METRICS = (
     ("end_error_m", "End-point error (m)"),
     ("end_error_pct", "End-point error (% of root travel)"),
     ("reconstruction_error_m", "Reconstruction error (m)"),
+    ("bone_length_cv", "Worst-bone length variation (std/mean, median over clips)"),
+    ("foot_skate_m_s", "Planted-foot speed (m/s)"),
+    ("floor_penetration", "Frames with a foot > 2 cm under the floor (share)"),
+    ("floor_depth_m", "Deepest foot point under the floor (m)"),
+    ("float_share", "Clips floating > 10 cm for ≥ 0.5 s (share)"),
+    ("hand_speed_m_s", "Mean hand speed (m/s)"),
+    ("hand_amplitude_m", "Hand oscillation amplitude (m, RMS about its mean)"),
+    ("foot_speed_m_s", "Mean foot speed (m/s)"),
+    ("foot_amplitude_m", "Foot oscillation amplitude (m)"),
+    ("jerk_m_s3", "Mean jerk (m/s³)"),
 )
+#: Per-action columns of the card: (metric, heading, format).
+PER_ACTION = (
+    ("bone_length_cv", "bone cv", "{:.2%}"),
+    ("foot_skate_m_s", "planted-foot speed (m/s)", "{:.3f}"),
+    ("floor_penetration", "frames under floor", "{:.2%}"),
+    ("float_share", "floating clips", "{:.0%}"),
+    ("hand_speed_m_s", "hand speed (m/s)", "{:.2f}"),
+    ("hand_amplitude_m", "hand amp. (m)", "{:.3f}"),
+    ("foot_speed_m_s", "foot speed (m/s)", "{:.2f}"),
+    ("jerk_m_s3", "jerk (m/s³)", "{:.0f}"),
+)
+SKATE_FLOOR = 0.02  # m/s: the planted-foot target for actions that stand still
 
 
 def cell(summary: dict[str, Any], key: str) -> str:
@@ -40,6 +62,58 @@ def metric_table(report: dict[str, Any]) -> list[str]:
         if key in report["real"] or key in report["generated"]:
             rows.append(f"| {label} | {cell(report['real'], key)} | {cell(report['generated'], key)} |")
     return rows
+
+
+def per_action_table(report: dict[str, Any]) -> list[str]:
+    """Markdown rows: each physical figure per action, generated / real."""
+    per_action = report.get("per_action") or {}
+    if not per_action:
+        return []
+    rows = ["| action | " + " | ".join(h for _, h, _ in PER_ACTION) + " |"]
+    rows.append("|---|" + "|".join("---" for _ in PER_ACTION) + "|")
+    for action, sides in per_action.items():
+        cells = []
+        for key, _, fmt in PER_ACTION:
+            gen, real = sides["generated"].get(key), sides["real"].get(key)
+            cells.append(
+                "–"
+                if gen is None or real is None
+                else f"{fmt.format(gen['mean'])} / {fmt.format(real['mean'])}"
+            )
+        rows.append(f"| {action} | " + " | ".join(cells) + " |")
+    return rows
+
+
+def physics_targets(report: dict[str, Any]) -> list[str]:
+    """The plausibility targets of issue 18, judged per action (generated against real held-out clips)."""
+    per_action = report.get("per_action") or {}
+    if not per_action:
+        return []
+
+    def mean(side: dict[str, Any], key: str) -> float:
+        return float(side[key]["mean"]) if key in side else float("nan")
+
+    checks = {
+        "worst-bone length variation ≤ 1 %": lambda g, r: mean(g, "bone_length_cv") <= 0.01,
+        "planted-foot speed ≤ 1.5× real (2 cm/s floor)": lambda g, r: (
+            mean(g, "foot_skate_m_s") <= max(1.5 * mean(r, "foot_skate_m_s"), SKATE_FLOOR)
+        ),
+        "under 1 % of frames with a foot 2 cm under the floor": lambda g, r: (
+            mean(g, "floor_penetration") < 0.01
+        ),
+        "floating clips at most 10 points above real": lambda g, r: (
+            mean(g, "float_share") <= mean(r, "float_share") + 0.10
+        ),
+        "mean hand speed ≥ 0.8× real": lambda g, r: (
+            mean(g, "hand_speed_m_s") >= 0.8 * mean(r, "hand_speed_m_s")
+        ),
+    }
+    lines = []
+    for name, check in checks.items():
+        failed = [a for a, s in per_action.items() if not check(s["generated"], s["real"])]
+        verdict = "met" if not failed else f"missed ({', '.join(failed)})"
+        lines.append(f"- {name}: {len(per_action) - len(failed)}/{len(per_action)} actions — {verdict}.")
+    return lines
 
 
 def targets(report: dict[str, Any], smooth: dict[str, Any]) -> list[str]:
@@ -72,6 +146,16 @@ def targets(report: dict[str, Any], smooth: dict[str, Any]) -> list[str]:
             f"{len(smooth) - len(worse)}/{len(smooth)} actions — {'met' if not worse else 'missed'}"
             + (f" ({', '.join(worse)})." if worse else ".")
         )
+    if "fid" in real and "fid" in gen:
+        ratio = gen["fid"]["mean"] / max(real["fid"]["mean"], 1e-12)
+        lines.append(
+            f"- FID at most 10× the real-vs-real floor: {gen['fid']['mean']:.3g} against "
+            f"{real['fid']['mean']:.3g} ({ratio:.1f}×) — {'met' if ratio <= 10 else 'missed'}."
+        )
+    if "style_nmi" in gen:
+        nmi = gen["style_nmi"]["mean"]
+        lines.append(f"- Style NMI ≥ 0.45: {nmi:.3f} — {'met' if nmi >= 0.45 else 'missed'}.")
+    lines += physics_targets(report)
     lines.append(
         "- FID against the Action2Motion-style baseline and style NMI against the plain-VAE "
         "ablation: see `docs/RESULTS.md` (generated by `bench/compare.py`)."
@@ -106,8 +190,13 @@ def write_model_card(out: Path, report: dict[str, Any], info: dict[str, Any], sm
         f"for evaluation ({info['heldout']}; listed in `heldout_clips.txt`)",
         f"- Data fingerprint: `{info['fingerprint']}`",
         f"- Model: {info['model_switches']}",
-        f"- Evaluation classifier (in `classifier/`): test accuracy on held-out training-side clips "
-        f"{info['classifier_accuracy']:.3f}",
+        f"- Evaluation classifier (in `classifier/`): accuracy {info['classifier_accuracy']:.3f} on every "
+        "window (stride 10) of held-out training-side clips"
+        + (
+            "; per action: " + ", ".join(f"{a} {v:.3f}" for a, v in info["classifier_per_action"].items())
+            if info.get("classifier_per_action")
+            else ""
+        ),
         f"- Written: {dt.datetime.now(dt.UTC).strftime('%Y-%m-%d %H:%M UTC')}",
         "",
         "## Evaluation on held-out clips",
@@ -117,6 +206,14 @@ def write_model_card(out: Path, report: dict[str, Any], info: dict[str, Any], sm
         "mean ± 95 % interval (1.96·s/√n).",
         "",
         *metric_table(report),
+        "",
+        "Physical figures: feet are the Foot/Toes joints, hands the Hand joints (found by name), floor "
+        "y = 0; a foot joint is planted within 3 cm of the clip's lowest foot height "
+        "(`engine.metrics.physics`).",
+        "",
+        "## Per action (generated / real)",
+        "",
+        *per_action_table(report),
         "",
         "## Quality targets",
         "",

@@ -163,6 +163,7 @@ def main() -> int:
             "n_heldout": len(test_clips),
             "heldout": f"{HELDOUT_FRACTION:.0%} of clips per action × style, seed {SPLIT_SEED}",
             "classifier_accuracy": classifier.test_accuracy,
+            "classifier_per_action": classifier.test_accuracy_per_action,
             "total_seconds": time.time() - started,
             "fingerprint": dataset.fingerprint,
             "model_switches": model_switches(loaded.config),
@@ -199,6 +200,14 @@ def model_switches(config: OdmoConfig) -> str:
             "`root_relative_poses` (the decoder emits the local movement profile; the root is the "
             "generated trajectory)"
         )
+    if config.bone_projection:
+        parts.append("`bone_projection` (decoded joints lie on the skeleton's bone lengths by construction)")
+    if config.foot_contact:
+        parts.append(
+            "`foot_contact` (a foot-contact head and loss; planted feet pinned to the floor at decode time)"
+        )
+    if config.w_velocity > 0:
+        parts.append(f"`w_velocity = {config.w_velocity:g}` (an L2 loss on joint velocities)")
     if config.contrastive_pull != 1.0:
         parts.append(
             f"`contrastive_pull = {config.contrastive_pull:g}` (the same-action pull of the contrastive term)"

@@ -69,28 +69,39 @@ class BoneProjection(nn.Module):
                     continue
             single.extend(kids)
         self.rigid = rigid
-        self.register_buffer("parents", torch.as_tensor(np.maximum(parents, 0)), persistent=False)
-        self.register_buffer("single", torch.as_tensor(sorted(single), dtype=torch.long), persistent=False)
-        self.register_buffer("lengths", torch.as_tensor(lengths, dtype=torch.float32), persistent=False)
+        self.n_joints = n
+        # bones (flattened J·3) = joints · to_bones; positions − root = bones · to_joints (one GEMM each)
+        parent_of = np.zeros((n, n))
+        parent_of[np.flatnonzero(parents >= 0), parents[parents >= 0]] = 1.0
+        eye3 = np.eye(3)
+        to_bones = np.kron(np.eye(n) - parent_of, eye3).T
+        to_joints = np.kron(ancestors, eye3).T
+        lengths_single = np.where(np.isin(np.arange(n), single), lengths, 0.0)
+        self.register_buffer("to_bones", torch.as_tensor(to_bones, dtype=torch.float32), persistent=False)
+        self.register_buffer("to_joints", torch.as_tensor(to_joints, dtype=torch.float32), persistent=False)
+        self.register_buffer(
+            "lengths", torch.as_tensor(lengths_single, dtype=torch.float32), persistent=False
+        )
         self.register_buffer("offsets", torch.as_tensor(offsets, dtype=torch.float32), persistent=False)
-        self.register_buffer("ancestors", torch.as_tensor(ancestors), persistent=False)
         rests = [_frame(self.offsets[a], self.offsets[b]) for _, _, a, b in rigid]
         self._rest_frames = [r.transpose(-1, -2) for r in rests]
 
     def forward(self, joints: Tensor) -> Tensor:
         """Projected positions, same shape as ``joints``."""
-        bones = joints - joints[..., self.parents, :]
-        out = torch.zeros_like(bones)
-        if len(self.single):
-            v = bones[..., self.single, :]
-            unit = v / v.norm(dim=-1, keepdim=True).clamp_min(_EPS)
-            out[..., self.single, :] = unit * self.lengths[self.single, None].to(joints)
-        offsets = self.offsets.to(joints)
-        for (_, kids, a, b), rest in zip(self.rigid, self._rest_frames, strict=True):
-            turn = _frame(bones[..., a, :], bones[..., b, :]) @ rest.to(joints)
-            out[..., kids, :] = torch.einsum("...ij,kj->...ki", turn, offsets[kids])
-        placed = torch.einsum("jk,...kc->...jc", self.ancestors.to(joints), out)
-        return placed + joints[..., self.root : self.root + 1, :]
+        shape = joints.shape
+        flat = joints.reshape(-1, self.n_joints * 3)
+        bones = (flat @ self.to_bones.to(joints)).view(-1, self.n_joints, 3)
+        scale = self.lengths.to(joints)[:, None] / bones.norm(dim=-1, keepdim=True).clamp_min(_EPS)
+        out = bones * scale  # single-child bones: the input direction at the rest length; the rest 0
+        if self.rigid:
+            offsets = self.offsets.to(joints)
+            for (_, kids, a, b), rest in zip(self.rigid, self._rest_frames, strict=True):
+                turn = _frame(bones[:, a], bones[:, b]) @ rest.to(joints)
+                out[:, kids] = torch.einsum("nij,kj->nki", turn, offsets[kids])
+        placed = out.reshape(-1, self.n_joints * 3) @ self.to_joints.to(joints)
+        return (
+            placed.view(-1, self.n_joints, 3) + flat.view(-1, self.n_joints, 3)[:, self.root : self.root + 1]
+        ).view(shape)
 
 
 def rotation_6d_to_matrix(d6: Tensor) -> Tensor:

@@ -88,3 +88,18 @@ def test_cli_evaluates_raw_bandai_clips_copied_out_of_the_dataset(bandai_dir, tm
     assert report["meta"]["n_real_clips"] == 6
     assert 0.0 <= report["generated"]["accuracy"]["mean"] <= 1.0
     assert report["real"]["accuracy"]["mean"] > 0.5
+
+
+def test_bundled_motion_keeps_its_bones_and_exports_as_shown(bundled, tmp_path, capsys) -> None:
+    from engine.metrics.physics import bone_length_cv
+    from engine.motion.formats import read_motion
+
+    motions = [s.motion for s in sample(bundled, "run", 6, np.random.default_rng(1))]
+    assert max(bone_length_cv(m.joints, bundled.skeleton.parents) for m in motions) < 1e-4
+    for suffix in ("bvh", "npz"):
+        argv = ["sample", "--model", str(BUNDLED), "--action", "run", "--seed", "7"]
+        assert cli.main([*argv, "--out", str(tmp_path / f"x.{suffix}")]) == 0
+    assert cli.main(["convert", str(tmp_path / "x.bvh"), str(tmp_path / "y.npz")]) == 0
+    from_bvh, direct = read_motion(tmp_path / "y.npz").joints, read_motion(tmp_path / "x.npz").joints
+    assert np.linalg.norm(from_bvh - direct, axis=-1).max() < 1e-3
+    assert "per action" in (BUNDLED / "MODEL_CARD.md").read_text().lower()
