@@ -912,8 +912,11 @@ class Controller(QObject):
         """Ask the engine for the code of the focused action whose root path follows ``path`` (K, 2)."""
         if self.state.model is None:
             return
-        loaded, action = self.loaded, self.state.focus_action
+        shown = next((d for d in self.state.shown if d.code is not None), None)
+        loaded = self.loaded
+        action = shown.action if shown is not None else self.state.focus_action  # the motion playing
         path_xz = np.asarray(path, dtype=np.float64)
+        length = float(np.linalg.norm(np.diff(path_xz, axis=0), axis=1).sum())
 
         def job(progress: Progress, _c: Cancel) -> generate.PathResult:
             from engine import generate
@@ -922,7 +925,11 @@ class Controller(QObject):
             return generate.follow_path(loaded, path_xz, action)
 
         def done(result: generate.PathResult) -> None:
-            label = f"follow path · {loaded.action_names[action]} · error {result.path_error_m:.3f} m"
+            share = result.path_error_m / max(length, 1e-9)
+            label = (
+                f"follow path · {loaded.action_names[action]} · error {result.path_error_m:.3f} m "
+                f"({share:.0%} of {length:.1f} m)"
+            )
             item = Decoded(result.motion, label, result.code, action, result.end)
             self.state.shown = (item,)
             self.window.trajectory.set_generated(_root_xz(result.motion), result.path_error_m)
