@@ -384,9 +384,20 @@ class SkeletonViewport(QWidget):
         return self._follow
 
     def set_follow(self, follow: bool) -> None:
-        """Make the camera follow the (mean) root of the skeletons on the floor plane."""
+        """Make the camera follow the (mean) root of the skeletons on the floor plane; turning it on
+        centres the view on that root at once (keeping the camera's direction and distance)."""
         self._follow = bool(follow)
         self._follow_anchor = None
+        if self._follow and self._mesh is not None and self._actors and self._actors[0].GetVisibility():
+            root = int(np.flatnonzero(self._parents < 0)[0])
+            ground = self.skeleton_points()[:, root, :].mean(axis=0).astype(np.float64)
+            camera = self.plotter.camera
+            focal = np.asarray(camera.focal_point)
+            shift = np.array([ground[0] - focal[0], 0.0, ground[2] - focal[2]])
+            camera.position = tuple(np.asarray(camera.position) + shift)
+            camera.focal_point = tuple(focal + shift)
+            self._follow_anchor = ground * np.array([1.0, 0.0, 1.0])
+            self._schedule_render()
 
     def _follow_root(self) -> None:
         root = int(np.flatnonzero(self._parents < 0)[0])
