@@ -16,7 +16,9 @@ _BEFORE_SWITCHES = {
     "bone_projection": False,
     "foot_contact": False,
     "w_velocity": 0.0,
+    "scheduled_sampling": "one_step",
 }
+SCHEDULED_SAMPLING = ("one_step", "free_run")
 TRAIN_PRECISIONS = ("float32", "bfloat16")
 
 
@@ -40,6 +42,8 @@ class OdmoConfig:
     (labels from the data, resting heights ``foot_heights`` above the floor), a contact loss
     (``w_contact``: cross-entropy, plus the speed of truly planted feet) and the decode-time clean-up
     that pins planted feet. ``w_velocity`` weights an L2 loss on frame-to-frame joint velocities.
+    ``scheduled_sampling`` says where the non-teacher-forced previous poses come from: "one_step" (a
+    teacher-forced pass) or "free_run" (a free-running decode, as the reference's per-step loop does).
     """
 
     n_actions: int
@@ -79,6 +83,7 @@ class OdmoConfig:
     w_velocity: float = 0.1
     foot_joints: tuple[int, ...] = ()
     foot_heights: tuple[float, ...] = ()
+    scheduled_sampling: str = "free_run"
     arch: str = "odmo"
 
     def __post_init__(self) -> None:
@@ -113,6 +118,9 @@ class OdmoConfig:
         if self.train_precision not in TRAIN_PRECISIONS:
             choices = ", ".join(TRAIN_PRECISIONS)
             raise ConfigError(f"train_precision must be one of {choices}, got {self.train_precision!r}")
+        if self.scheduled_sampling not in SCHEDULED_SAMPLING:
+            choices = ", ".join(SCHEDULED_SAMPLING)
+            raise ConfigError(f"scheduled_sampling must be one of {choices}, got {self.scheduled_sampling!r}")
         if self.arch != "odmo":
             raise ConfigError(f"unknown architecture {self.arch!r} (expected 'odmo')")
 

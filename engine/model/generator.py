@@ -93,8 +93,17 @@ class MotionGenerator(nn.Module):
     the root, so the generated root follows the trajectory exactly.
     """
 
-    def __init__(self, n_joints: int, cond_dim: int, hidden: int, window: int, relative: bool = False):
+    def __init__(
+        self,
+        n_joints: int,
+        cond_dim: int,
+        hidden: int,
+        window: int,
+        relative: bool = False,
+        free_running_samples: bool = False,
+    ):
         super().__init__()
+        self.free_running_samples = free_running_samples
         self.pose_dim = n_joints * 3
         self.window = window
         self.relative = relative
@@ -140,7 +149,10 @@ class MotionGenerator(nn.Module):
         With ``truth`` (B, T, J, 3) this is parallel scheduled sampling: a teacher-forced pass over the
         whole sequence, then (if ``tf_rate`` < 1) a second pass whose previous pose at each frame is the
         ground truth with probability ``tf_rate`` (drawn per frame and sample from ``generator``) and the
-        first pass's (detached) prediction otherwise. Without ``truth`` it decodes free-running.
+        first pass's (detached) prediction otherwise. The first pass is teacher-forced (one-step
+        predictions) or, with ``free_running_samples``, a free-running decode, so that the decoder learns
+        to continue from its own drifted poses as it must when it runs free. Without ``truth`` it decodes
+        free-running.
         """
         b = cond.shape[0]
         state, const = self._context(trajectory, cond)
@@ -151,7 +163,12 @@ class MotionGenerator(nn.Module):
         prev = torch.cat([gt.new_zeros(b, 1, self.pose_dim), gt[:, :-1]], dim=1)
         if tf_rate < 1.0:
             with torch.no_grad():
-                first = self._readback(self._run(prev, const, state)[0])
+                guess = (
+                    self._free_run(const, state)
+                    if self.free_running_samples
+                    else self._run(prev, const, state)
+                )
+                first = self._readback(guess[0])
             keep = torch.rand(b, self.window - 1, 1, generator=generator, device=gt.device) < tf_rate
             mixed = torch.where(keep, gt[:, :-1], first[:, :-1])
             prev = torch.cat([gt.new_zeros(b, 1, self.pose_dim), mixed], dim=1)

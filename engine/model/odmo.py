@@ -48,7 +48,12 @@ class OdmoModel(nn.Module):
                 cond_dim, config.traj_hidden, config.window, config.use_end_location, config.exact_end
             )
             self.motion_gen = MotionGenerator(
-                config.n_joints, cond_dim, config.motion_hidden, config.window, config.root_relative_poses
+                config.n_joints,
+                cond_dim,
+                config.motion_hidden,
+                config.window,
+                config.root_relative_poses,
+                config.scheduled_sampling == "free_run",
             )
             n_feet = len(config.foot_joints) if config.foot_contact else 0
             self.contact = nn.Linear(config.motion_hidden, n_feet) if n_feet else None
