@@ -337,3 +337,27 @@ def test_outputs_stay_float32_under_autocast_and_the_free_run_leaves_no_trace() 
     # Only the trajectory LSTMs ran in bfloat16; the cached float32 loop weights are untouched.
     assert (free - plain).abs().max() < 0.1
     assert torch.equal(after, plain)
+
+
+def test_free_running_scheduled_sampling_feeds_back_the_free_running_decode() -> None:
+    model = _model(scheduled_sampling="free_run").eval()
+    with torch.no_grad():
+        model.motion_gen.embed.weight[:, : model.motion_gen.pose_dim] *= 30.0  # the previous pose matters
+    one_step = _model(scheduled_sampling="one_step").eval()
+    one_step.load_state_dict(model.state_dict())
+    z, action, end = torch.randn(2, 20), torch.tensor([0, 1]), torch.randn(2, 3)
+    truth = 10 * torch.randn(2, T, J, 3)  # far from anything the decoder makes
+    gen = model.motion_gen
+    with torch.no_grad():
+        trained, _ = model.decode(z, action, end, prev_truth=truth, tf_rate=0.0)
+        free, traj = model.decode(z, action, end)
+        # tf_rate 0: every previous pose is the free-running decode's own (root-relative) pose
+        poses = (free - traj.unsqueeze(2)).flatten(2)
+        prev = torch.cat([poses.new_zeros(2, 1, gen.pose_dim), poses[:, :-1]], dim=1)
+        cond = model.condition(z, action)
+        state, const = gen._context(traj, cond)
+        expected = gen._absolute(gen._run(prev, const, state)[0], traj)
+        other, _ = one_step.decode(z, action, end, prev_truth=truth, tf_rate=0.0)
+    torch.testing.assert_close(trained, expected, atol=1e-4, rtol=1e-4)
+    torch.testing.assert_close(trained, free, atol=1e-4, rtol=1e-4)  # its own input: the free run again
+    assert not torch.allclose(other, trained, atol=1e-3)  # one-step samples read the truth's predictions
