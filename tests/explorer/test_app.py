@@ -111,34 +111,27 @@ def test_dock_layout_is_remembered(qtbot, open_explorer, tiny_model_dir: Path, t
     assert second.window.viewport_dock.isVisible()
 
 
-def test_screenshot_entry_point_writes_png(tiny_model_dir: Path, tmp_path: Path) -> None:
-    shot = tmp_path / "shot.png"
-    settings = tmp_path / "s.ini"
-    command = [sys.executable, "-m", "explorer.app", "--model", str(tiny_model_dir)]
-    command += ["--screenshot", str(shot), "--after", "0.5", "--settings", str(settings)]
-    done = subprocess.run(command, capture_output=True, text=True, timeout=300, check=False)
-    assert done.returncode == 0, done.stderr
-    image = QImage(str(shot))
-    assert image.width() >= 800 and image.height() >= 500
-    assert image.text("model") == str(tiny_model_dir)
-    assert settings.is_file()
-
-
 def _run_app(*args: str) -> subprocess.CompletedProcess:
     command = [sys.executable, "-m", "explorer.app", *args]
     return subprocess.run(command, capture_output=True, text=True, timeout=300, check=False)
 
 
-def test_screenshot_selects_and_colours_for_scripted_figures(tiny_model_dir: Path, tmp_path: Path) -> None:
+def test_screenshot_entry_point_selects_and_colours_for_scripted_figures(
+    tiny_model_dir: Path, tmp_path: Path
+) -> None:
     shot = tmp_path / "figure.png"
+    settings = tmp_path / "s.ini"
     done = _run_app(
         "--model", str(tiny_model_dir), "--screenshot", str(shot), "--after", "0.5",
-        "--settings", str(tmp_path / "s.ini"), "--select", "3", "--color-by", "meta:style",
+        "--settings", str(settings), "--select", "3", "--color-by", "meta:style",
     )  # fmt: skip
     assert done.returncode == 0, done.stderr
     image = QImage(str(shot))
+    assert image.width() >= 800 and image.height() >= 500
+    assert image.text("model") == str(tiny_model_dir)
     assert json.loads(image.text("selection")) == [3]
     assert image.text("color_by") == "meta:style" and image.text("projection") == "pca"
+    assert settings.is_file()
 
 
 def test_screenshot_of_a_broken_model_exits_non_zero_and_writes_nothing(tmp_path: Path) -> None:
