@@ -14,13 +14,13 @@ import numpy as np
 from tqdm import tqdm
 
 from engine.cli.options import add_up_axis
-from engine.errors import ConfigError, DataError, ModelFormatError
+from engine.errors import ConfigError, DataError
 from engine.fileio import folder_lock
 from engine.limits import check_count
 
 if TYPE_CHECKING:
     from engine.generate import Sample
-    from engine.modelio import LoadedModel
+    from engine.generators import Generator
     from engine.motion.datasets import Dataset
     from engine.train.loop import TrainProgress
 
@@ -61,25 +61,31 @@ def _write_all(samples: list[Sample], paths: list[Path]) -> None:
         print(f"{path}{mode}")
 
 
-def endpoint_code(loaded: LoadedModel, text: str, action: int) -> np.ndarray:
-    """The (D,) code named by ``text`` (see ENDPOINT_HELP)."""
+def endpoint_code(generator: Generator, text: str, action: str) -> np.ndarray:
+    """The code named by ``text`` (see ENDPOINT_HELP) among the bank codes of ``action``."""
     match = _ENDPOINT_RE.match(text.strip())
     if match is None:
         raise ConfigError(f"bad endpoint {text!r}: {ENDPOINT_HELP}")
-    bank = loaded.bank
+    bank = generator.bank
     if bank is None:
-        raise ConfigError(f"{loaded.path}: the model has no latent bank (run `odmo bank`)")
+        raise ConfigError(f"{generator.path}: the model has no latent bank (run `odmo bank`)")
+    names = generator.action_names or []
+    if action not in names:
+        raise ConfigError(f"unknown action {action!r}; the model knows: {', '.join(names)}")
+    index = names.index(action)
     kind, number = match.group(1), int(match.group(2))
     if kind == "m":
-        means = bank.modes[action].means
+        if index not in bank.modes:
+            raise ConfigError(f"action {action!r} has no modes in the latent bank")
+        means = bank.modes[index].means
         if number >= len(means):
-            raise ConfigError(f"action {loaded.action_names[action]!r} has modes m0..m{len(means) - 1}")
+            raise ConfigError(f"action {action!r} has modes m0..m{len(means) - 1}")
         return np.asarray(means[number], dtype=np.float32)
     if number >= len(bank.codes):
         raise ConfigError(f"the latent bank has codes i0..i{len(bank.codes) - 1}")
-    if int(bank.actions[number]) != action:
+    if int(bank.actions[number]) != index:
         owner = bank.action_names[int(bank.actions[number])]
-        raise ConfigError(f"bank code i{number} is a {owner!r} code, not {loaded.action_names[action]!r}")
+        raise ConfigError(f"bank code i{number} is a {owner!r} code, not {action!r}")
     return np.asarray(bank.codes[number], dtype=np.float32)
 
 
@@ -183,8 +189,10 @@ def _cmd_train(args: argparse.Namespace) -> int:
 
 
 def _cmd_bank(args: argparse.Namespace) -> int:
-    if not args.model.is_dir():
-        raise ModelFormatError(f"{args.model}: not a model folder")
+    from engine.generators import CapabilityError, model_kind
+
+    if (kind := model_kind(args.model)) != "odmo":
+        raise CapabilityError(f"{args.model}: this {kind} model has no latent codes to build a bank of")
     with folder_lock(args.model, "writing the model folder"):
         return _bank_locked(args)
 
@@ -227,47 +235,45 @@ def _bank_locked(args: argparse.Namespace) -> int:
 
 
 def _cmd_sample(args: argparse.Namespace) -> int:
-    from engine.generate import sample
-    from engine.modelio import load_model
+    from engine.generators import open_generator
 
     check_count("--n", args.n)
-    loaded = load_model(args.model)
-    strategy = "mode" if args.mode is not None else args.strategy
-    samples = sample(
-        loaded, args.action, args.n, args.seed, strategy=strategy, mode=args.mode, end=_end(args)
+    generator = open_generator(args.model)
+    end = _end(args)
+    samples = generator.sample(
+        args.action, args.n, args.seed, strategy=args.strategy, mode=args.mode, end=end
     )
     _write(samples, args.out, args.action)
     return 0
 
 
 def _cmd_interpolate(args: argparse.Namespace) -> int:
-    from engine.generate import action_index, interpolate
-    from engine.modelio import load_model
+    from engine.generators import open_generator, require
 
     check_count("--steps", args.steps)
-    loaded = load_model(args.model)
-    action = action_index(loaded, args.action)
-    a, b = (endpoint_code(loaded, text, action) for text in (args.from_, args.to))
-    samples = interpolate(loaded, a, b, action, args.steps, method=args.method)
+    generator = open_generator(args.model)
+    require(generator, "interpolate")
+    a, b = (endpoint_code(generator, text, args.action) for text in (args.from_, args.to))
+    samples = generator.interpolate(a, b, args.action, args.steps, method=args.method)
     _write(samples, args.out, f"{args.action}_{args.from_}_{args.to}")
     return 0
 
 
 def _cmd_encode(args: argparse.Namespace) -> int:
-    from engine.generate import encode
-    from engine.modelio import load_model
+    from engine.generators import open_generator, require
     from engine.motion.motion import Motion
 
-    loaded = load_model(args.model)
+    generator = open_generator(args.model)
+    require(generator, "encode")
     motion = Motion.from_file(args.file, up_axis=args.up_axis)
-    code, guess = encode(loaded, motion)
-    mode = None
-    if guess is not None and loaded.bank is not None and guess in loaded.bank.modes:
-        mode = int(loaded.bank.modes[guess].predict(code[None])[0])
+    code, guess = generator.encode(motion)
+    bank, mode = generator.bank, None
+    if guess is not None and bank is not None and guess in bank.modes:
+        mode = int(bank.modes[guess].predict(code[None])[0])
     report = {
         "file": str(args.file),
         "code": [round(float(v), 6) for v in code],
-        "action": None if guess is None else loaded.action_names[guess],
+        "action": None if guess is None else generator.action_names[guess],
         "mode": mode,
     }
     if args.json:
@@ -322,7 +328,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--n", type=int, default=1, help="how many motions")
     p.add_argument("--end", type=float, nargs=2, metavar=("X", "Z"), help="end location on the floor, metres")
     p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--strategy", default="mode_preserving", choices=("mode_preserving", "conventional"))
+    p.add_argument(
+        "--strategy",
+        choices=("mode_preserving", "conventional", "prior"),
+        help="ODMO: mode_preserving (default) or conventional; Action2Motion: prior (its only one)",
+    )
     p.add_argument(
         "--out", type=Path, required=True, help="a .npz/.bvh/.npy file (numbered if N > 1) or a folder"
     )

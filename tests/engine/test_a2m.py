@@ -17,36 +17,18 @@ from engine.metrics.a2m_eval import NOT_APPLICABLE, evaluate_a2m
 from engine.metrics.classifier import Classifier, train_classifier
 from engine.metrics.evaluate import evaluate
 from engine.metrics.physics import physics_metrics
-from engine.model.a2m import A2mConfig, A2mModel
+from engine.model.a2m import A2mModel
 from engine.modelio import load_model
 from engine.motion.motion import Motion
 from engine.train.a2m_loop import train_a2m
 from tests.fixtures.procedural import PROCEDURAL_ACTIONS
-from tests.fixtures.tiny_model import single_thread
-
-
-def tiny_a2m_config(**changes: object) -> A2mConfig:
-    """Small sizes and a short, high-rate schedule for tests."""
-    base = {
-        "n_actions": len(PROCEDURAL_ACTIONS),
-        "n_joints": 11,
-        "hidden": 32,
-        "latent_dim": 8,
-        "batch_size": 16,
-        "epoch_size": 64,
-        "epochs": 8,
-        "lr": 3e-3,
-    }
-    return A2mConfig(**(base | changes))
+from tests.fixtures.tiny_model import single_thread, tiny_a2m_config
 
 
 @pytest.fixture(scope="module")
-def a2m_dir(tmp_path_factory: pytest.TempPathFactory, procedural_clips: list[Motion]) -> Path:
-    """Folder of a tiny A2M trained on the procedural clips."""
-    out = tmp_path_factory.mktemp("a2m")
-    with single_thread():
-        train_a2m(procedural_clips, PROCEDURAL_ACTIONS, out, tiny_a2m_config(), seed=0, device="cpu")
-    return out
+def a2m_dir(tiny_a2m_dir: Path) -> Path:
+    """Folder of a tiny A2M trained on the procedural clips (the session's)."""
+    return tiny_a2m_dir
 
 
 @pytest.fixture(scope="module")

@@ -1,0 +1,151 @@
+"""One interface for every generator kind: capability names, the Generator protocol and the registry.
+
+A model folder names its kind in ``model.json``'s ``arch`` (folders written before the field existed are
+ODMO). :func:`open_generator` reads it and calls the opener registered for that kind; a command or a tool
+that needs more than decoding and sampling asks :func:`require` first, so a kind without a capability is
+refused with one line saying what the model can do instead.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING, Protocol, runtime_checkable
+
+import numpy as np
+
+from engine.errors import ConfigError, ModelFormatError
+
+if TYPE_CHECKING:
+    from engine.generate import Sample
+    from engine.latent.bank import LatentBank
+    from engine.motion.motion import Motion
+    from engine.motion.skeleton import Skeleton
+
+#: Every capability a kind may declare, with what it lets a user do (used in refusals and tooltips).
+CAPABILITIES: dict[str, str] = {
+    "sample": "sample motions",
+    "decode": "decode a given latent code",
+    "modes": "sample from discovered modes (mode-preserving, conventional, one mode)",
+    "bank": "map its training codes (latent bank)",
+    "interpolate": "interpolate between two codes",
+    "encode": "encode a motion into a code",
+    "end": "set where the motion ends",
+    "follow_path": "follow a path on the floor",
+    "invert": "invert a motion by optimisation",
+    "edit": "edit along semantic directions",
+    "mix": "mix styles",
+    "truncate": "sample with truncation",
+    "complete": "complete a motion from a prefix",
+    "extend": "extend a motion past its window",
+}
+
+
+class CapabilityError(ConfigError):
+    """The loaded generator kind cannot do what was asked."""
+
+
+@dataclass(frozen=True)
+class CodeSpace:
+    """The space a kind's codes live in: its name (e.g. "z", "W+") and size per code."""
+
+    name: str
+    size: int
+
+
+@runtime_checkable
+class Generator(Protocol):
+    """What the CLI and the app need of a generator kind; optional methods follow ``capabilities``."""
+
+    kind: str
+    path: Path
+    skeleton: Skeleton
+    fps: float
+    window: int
+    action_names: list[str] | None
+    code_space: CodeSpace
+    capabilities: frozenset[str]
+    bank: LatentBank | None
+
+    def sample(
+        self,
+        action: str | None,
+        n: int,
+        seed: int,
+        *,
+        strategy: str | None = None,
+        mode: int | None = None,
+        end: np.ndarray | None = None,
+    ) -> list[Sample]:
+        """``n`` motions of ``action`` (None for an unconditional kind); the same seed, the same motions."""
+        ...
+
+    def decode(
+        self,
+        codes: np.ndarray,
+        actions: Sequence[str] | str | None,
+        end: np.ndarray | None = None,
+        seed: int | None = None,
+    ) -> list[Motion]:
+        """One motion per code (N, code_space.size) ("decode" capability)."""
+        ...
+
+
+Opener = Callable[[Path, str], Generator]
+_KINDS: dict[str, Opener] = {}
+
+
+def register_kind(arch: str, opener: Opener) -> None:
+    """Make :func:`open_generator` open folders whose ``model.json`` says ``"arch": arch``."""
+    _KINDS[arch] = opener
+
+
+def kinds() -> list[str]:
+    """The registered kinds, sorted."""
+    _register_builtin()
+    return sorted(_KINDS)
+
+
+def model_kind(path: str | Path) -> str:
+    """The registered kind a model folder's ``model.json`` names (ModelFormatError for any other)."""
+    from engine.modelio import META_FILE, read_meta
+
+    folder = Path(path)
+    if not folder.is_dir():
+        raise ModelFormatError(f"{folder}: not a model folder")
+    arch = read_meta(folder / META_FILE).get("arch", "odmo")
+    if not isinstance(arch, str) or arch not in kinds():
+        raise ModelFormatError(
+            f"{folder / META_FILE}: unknown model kind {arch!r}; this program opens {', '.join(kinds())}"
+        )
+    return arch
+
+
+def open_generator(path: str | Path, device: str = "cpu") -> Generator:
+    """The generator in a model folder, of whichever registered kind its ``model.json`` names."""
+    return _KINDS[model_kind(path)](Path(path), device)
+
+
+def refusal(generator: Generator, capability: str, asked: str | None = None) -> CapabilityError:
+    """The error saying that ``generator`` lacks ``capability`` and what it can do instead."""
+    if capability not in CAPABILITIES:
+        raise ValueError(f"unknown capability {capability!r}")
+    can = ", ".join(CAPABILITIES[c] for c in CAPABILITIES if c in generator.capabilities)
+    what = asked or CAPABILITIES[capability]
+    return CapabilityError(f"{generator.path}: this {generator.kind} model cannot {what}; it can {can}")
+
+
+def require(generator: Generator, capability: str, asked: str | None = None) -> None:
+    """CapabilityError unless ``generator`` declares ``capability`` (``asked`` names the request)."""
+    if capability not in generator.capabilities:
+        raise refusal(generator, capability, asked)
+
+
+def _register_builtin() -> None:
+    """Register the kinds this program ships (imported lazily: each brings in torch)."""
+    if "odmo" not in _KINDS:
+        from engine.generators import a2m, odmo
+
+        register_kind("odmo", odmo.open_odmo)
+        register_kind("a2m", a2m.open_a2m)

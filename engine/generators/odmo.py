@@ -1,0 +1,119 @@
+"""ODMO behind the Generator interface: codes from discovered modes, end locations, encoding, paths."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from engine.errors import ConfigError
+from engine.generate import Sample, decode_batch, encode, interpolate, sample
+from engine.generators.base import CodeSpace, Generator, require
+from engine.latent.bank import LatentBank
+from engine.modelio import LoadedModel, load_model
+from engine.motion.motion import Motion
+from engine.motion.skeleton import Skeleton
+
+_ALWAYS = frozenset({"decode", "interpolate", "encode", "follow_path", "bank"})
+_WITH_BANK = frozenset({"sample", "modes"})
+
+
+@dataclass(eq=False)
+class OdmoGenerator:
+    """A loaded ODMO model folder (``loaded``) seen through the Generator interface."""
+
+    loaded: LoadedModel
+    kind: str = "odmo"
+
+    @property
+    def path(self) -> Path:
+        """The model folder."""
+        return self.loaded.path
+
+    @property
+    def skeleton(self) -> Skeleton:
+        """The skeleton decoded motions are on."""
+        return self.loaded.skeleton
+
+    @property
+    def fps(self) -> float:
+        """Frames per second of decoded motions."""
+        return self.loaded.fps
+
+    @property
+    def window(self) -> int:
+        """Frames per decoded motion."""
+        return self.loaded.window
+
+    @property
+    def action_names(self) -> list[str]:
+        """The actions it is conditioned on."""
+        return list(self.loaded.action_names)
+
+    @property
+    def code_space(self) -> CodeSpace:
+        """ODMO's per-motion latent code z."""
+        return CodeSpace("z", int(self.loaded.config.latent_dim))
+
+    @property
+    def bank(self) -> LatentBank | None:
+        """The latent bank (training codes, modes, maps), if the folder has one."""
+        return self.loaded.bank
+
+    @property
+    def capabilities(self) -> frozenset[str]:
+        """Decode, interpolate, encode, follow paths and build a bank; sampling from modes needs the
+        bank; end locations need the model to take them."""
+        found = _ALWAYS | (_WITH_BANK if self.loaded.bank is not None else frozenset())
+        return found | ({"end"} if self.loaded.config.use_end_location else frozenset())
+
+    def sample(
+        self,
+        action: str | None,
+        n: int,
+        seed: int,
+        *,
+        strategy: str | None = None,
+        mode: int | None = None,
+        end: np.ndarray | None = None,
+    ) -> list[Sample]:
+        """``n`` motions of ``action`` drawn from its modes (mode-preserving unless ``strategy``/``mode``)."""
+        if action is None:
+            raise ConfigError(
+                f"{self.path}: an ODMO model needs an action; it knows {', '.join(self.action_names)}"
+            )
+        require(self, "sample", "sample without a latent bank (run `odmo bank`)")
+        if end is not None:
+            require(self, "end", "take an end location")
+        chosen = "mode" if mode is not None else (strategy or "mode_preserving")
+        return sample(self.loaded, action, n, seed, strategy=chosen, mode=mode, end=end)
+
+    def decode(
+        self,
+        codes: np.ndarray,
+        actions: Sequence[str] | str | None,
+        end: np.ndarray | None = None,
+        seed: int | None = None,
+    ) -> list[Motion]:
+        """One motion per code of one action (the end location predicted from the bank when None)."""
+        if actions is None or (not isinstance(actions, str) and len(set(actions)) != 1):
+            raise ConfigError("ODMO decodes the codes of one action at a time; name it")
+        action = actions if isinstance(actions, str) else next(iter(actions))
+        return decode_batch(self.loaded, codes, action, end, seed=seed)
+
+    def encode(self, motion: Motion) -> tuple[np.ndarray, int | None]:
+        """The posterior-mean code of ``motion`` and a guess of its action index."""
+        return encode(self.loaded, motion)
+
+    def interpolate(
+        self, code_a: np.ndarray, code_b: np.ndarray, action: str, steps: int, method: str = "linear"
+    ) -> list[Sample]:
+        """``steps`` motions from ``code_a`` to ``code_b`` within ``action``."""
+        return interpolate(self.loaded, code_a, code_b, action, steps, method=method)
+
+
+def open_odmo(path: Path, device: str) -> Generator:
+    """Open an ODMO model folder."""
+    return OdmoGenerator(load_model(path, device=device))

@@ -1,0 +1,153 @@
+"""The contract every generator kind keeps, run over each kind this program ships.
+
+Shapes and units of what it samples, seed reproducibility, a saved folder reopened giving the same motions,
+each declared capability exercised through the CLI and each undeclared one refused with one line.
+"""
+
+from __future__ import annotations
+
+import json
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from engine.cli import main
+from engine.errors import ModelFormatError
+from engine.generators import CAPABILITIES, CapabilityError, Generator, kinds, open_generator, require
+from engine.motion.npz import read_npz
+
+pytestmark = pytest.mark.usefixtures("torch_single_thread")
+
+
+@pytest.fixture(params=["odmo", "a2m"])
+def folder(request: pytest.FixtureRequest) -> Path:
+    """The folder of a tiny trained model of each kind."""
+    return request.getfixturevalue({"odmo": "tiny_model_dir", "a2m": "tiny_a2m_dir"}[request.param])
+
+
+def test_every_shipped_kind_is_registered() -> None:
+    assert kinds() == ["a2m", "odmo"]
+
+
+def test_open_picks_the_kind_from_model_json(folder: Path) -> None:
+    generator = open_generator(folder)
+    assert isinstance(generator, Generator)
+    assert generator.kind == json.loads((folder / "model.json").read_text()).get("arch", "odmo")
+    assert generator.capabilities <= set(CAPABILITIES) and "sample" in generator.capabilities
+    assert generator.code_space.size > 0 and generator.window > 1 and generator.fps > 0
+
+
+def test_samples_have_the_models_shape_units_and_skeleton(folder: Path) -> None:
+    generator = open_generator(folder)
+    action = generator.action_names[1]
+    samples = generator.sample(action, 3, seed=5)
+    assert len(samples) == 3
+    for s in samples:
+        m = s.motion
+        assert m.joints.shape == (generator.window, generator.skeleton.n_joints, 3)
+        assert m.joints.dtype == np.float32 and np.isfinite(m.joints).all()
+        assert m.fps == generator.fps and m.action == action
+        assert m.skeleton.same_topology(generator.skeleton)
+        height = m.joints[:, :, 1]
+        assert 0.3 < float(np.median(height)) < 2.5, "metres, y up, standing at display height"
+
+
+def test_same_seed_same_motions_other_seed_others(folder: Path) -> None:
+    generator = open_generator(folder)
+    action = generator.action_names[0]
+    a = [s.motion.joints for s in generator.sample(action, 2, seed=11)]
+    b = [s.motion.joints for s in generator.sample(action, 2, seed=11)]
+    c = [s.motion.joints for s in generator.sample(action, 2, seed=12)]
+    assert all(np.array_equal(x, y) for x, y in zip(a, b, strict=True))
+    assert not np.allclose(a[0], c[0])
+
+
+def test_a_copied_folder_reopens_to_the_same_motions(folder: Path, tmp_path: Path) -> None:
+    copy = Path(shutil.copytree(folder, tmp_path / "copy"))
+    action = open_generator(folder).action_names[2]
+    first = open_generator(folder).sample(action, 2, seed=3)
+    again = open_generator(copy).sample(action, 2, seed=3)
+    for x, y in zip(first, again, strict=True):
+        np.testing.assert_array_equal(x.motion.joints, y.motion.joints)
+
+
+def test_cli_sample_opens_every_kind(folder: Path, tmp_path: Path) -> None:
+    generator = open_generator(folder)
+    action = generator.action_names[0]
+    out = tmp_path / "out"
+    assert (
+        main(
+            [
+                "sample",
+                "--model",
+                str(folder),
+                "--action",
+                action,
+                "--n",
+                "2",
+                "--seed",
+                "4",
+                "--out",
+                str(out),
+            ]
+        )
+        == 0
+    )
+    files = sorted(out.glob("*.npz"))
+    assert [f.name for f in files] == [f"{action}_000.npz", f"{action}_001.npz"]
+    expected = generator.sample(action, 2, seed=4)
+    for f, s in zip(files, expected, strict=True):
+        np.testing.assert_allclose(read_npz(f).joints, s.motion.joints, atol=1e-6)
+
+
+def test_declared_capabilities_work_and_the_others_are_refused(
+    folder: Path, tmp_path: Path, capsys: pytest.CaptureFixture
+) -> None:
+    generator = open_generator(folder)
+    action = generator.action_names[0]
+    clip = generator.sample(action, 1, seed=0)[0].motion
+    clip.save(tmp_path / "clip.npz")
+    model = ["--model", str(folder), "--action", action]
+    bank = generator.bank
+    ends = ["i0", "i1"] if bank is None else [f"i{i}" for i in np.flatnonzero(bank.actions == 0)[:2]]
+    runs = {
+        "encode": ["encode", "--model", str(folder), str(tmp_path / "clip.npz")],
+        "interpolate": ["interpolate", *model, "--from", ends[0], "--to", ends[1], "--steps", "3", "--out",
+                        str(tmp_path / "strip")],
+        "modes": ["sample", *model, "--mode", "0", "--out", str(tmp_path / "m.npz")],
+        "end": ["sample", *model, "--end", "1", "2", "--out", str(tmp_path / "e.npz")],
+    }  # fmt: skip
+    for capability, argv in runs.items():
+        code = main(argv)
+        err = capsys.readouterr().err
+        if capability in generator.capabilities:
+            assert code == 0, (capability, err)
+        else:
+            assert code == 1 and err.count("\n") == 1, (capability, err)
+            assert f"this {generator.kind} model cannot" in err and str(folder) in err
+    if "decode" in generator.capabilities:
+        z = np.zeros((2, generator.code_space.size), dtype=np.float32)
+        motions = generator.decode(z, action)
+        assert len(motions) == 2 and np.array_equal(motions[0].joints, motions[1].joints)
+    else:
+        with pytest.raises(CapabilityError, match="cannot decode a given latent code"):
+            generator.decode(np.zeros((1, generator.code_space.size)), action)
+
+
+def test_require_names_what_the_model_can_do(tiny_a2m_dir: Path) -> None:
+    generator = open_generator(tiny_a2m_dir)
+    with pytest.raises(CapabilityError, match=r"cannot encode a motion into a code; it can sample motions$"):
+        require(generator, "encode")
+    assert main(["bank", "--model", str(tiny_a2m_dir), "--data", str(tiny_a2m_dir)]) == 1
+
+
+def test_unknown_kinds_are_refused_by_name(tiny_a2m_dir: Path, tmp_path: Path) -> None:
+    copy = Path(shutil.copytree(tiny_a2m_dir, tmp_path / "copy"))
+    meta = json.loads((copy / "model.json").read_text())
+    (copy / "model.json").write_text(json.dumps(meta | {"arch": "modi"}))
+    with pytest.raises(
+        ModelFormatError, match=r"model\.json: unknown model kind 'modi'; this program opens a2m, odmo"
+    ):
+        open_generator(copy)
