@@ -65,12 +65,20 @@ ROWS = {
     "odmo_previous": "ODMO, a given earlier model folder (--previous)",
     "a2m": "Action2Motion (joint positions)",
 }
+# The comparison rows keep the model they had before issue 18 (no bone projection, contact head, velocity
+# loss or free-running samples); the bundled default row has them.
+_BEFORE_18 = {
+    "bone_projection": False,
+    "foot_contact": False,
+    "w_velocity": 0.0,
+    "scheduled_sampling": "one_step",
+}
 ODMO_VARIANTS: dict[str, dict[str, Any]] = {
-    "odmo": {},
-    "odmo_no_contrastive": {"w_contrastive": 0.0},
-    "odmo_no_end": {"use_end_location": False},
-    "odmo_push_only": {"contrastive_pull": 0.0},
-    "odmo_push_bf16": {"contrastive_pull": 0.0, "train_precision": "bfloat16"},
+    "odmo": dict(_BEFORE_18),
+    "odmo_no_contrastive": {"w_contrastive": 0.0, **_BEFORE_18},
+    "odmo_no_end": {"use_end_location": False, **_BEFORE_18},
+    "odmo_push_only": {"contrastive_pull": 0.0, **_BEFORE_18},
+    "odmo_push_bf16": {"contrastive_pull": 0.0, "train_precision": "bfloat16", **_BEFORE_18},
 }
 # (header, metric key, decimals); "→" means closer to the real row is better.
 COLUMNS = (

@@ -19,6 +19,8 @@ _BEFORE_SWITCHES = {
     "scheduled_sampling": "one_step",
 }
 SCHEDULED_SAMPLING = ("one_step", "free_run")
+#: The paper's model in one setting, ``OdmoConfig(n_actions, n_joints, **PAPER)``: every project change off.
+PAPER: dict[str, Any] = {"contrastive_pull": 1.0, **_BEFORE_SWITCHES}
 TRAIN_PRECISIONS = ("float32", "bfloat16")
 
 

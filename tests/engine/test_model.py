@@ -361,3 +361,22 @@ def test_free_running_scheduled_sampling_feeds_back_the_free_running_decode() ->
     torch.testing.assert_close(trained, expected, atol=1e-4, rtol=1e-4)
     torch.testing.assert_close(trained, free, atol=1e-4, rtol=1e-4)  # its own input: the free run again
     assert not torch.allclose(other, trained, atol=1e-3)  # one-step samples read the truth's predictions
+
+
+def test_the_papers_model_is_one_setting_away() -> None:
+    from engine.model.config import PAPER
+    from tests.fixtures.procedural import procedural_skeleton
+
+    paper = OdmoModel(OdmoConfig(n_actions=3, n_joints=11, **PAPER))
+    paper.attach_skeleton(procedural_skeleton())
+    assert paper.projection is None and paper.contact is None and not paper.motion_gen.relative
+    assert not paper.motion_gen.free_running_samples and paper.config.w_velocity == 0.0
+    ours = OdmoModel(OdmoConfig(n_actions=3, n_joints=11, foot_joints=(8, 10), foot_heights=(0.05, 0.05)))
+    ours.attach_skeleton(procedural_skeleton())
+    assert ours.projection is not None and ours.contact is not None and ours.motion_gen.free_running_samples
+    # a model.json written before the switches existed loads as the paper's decoder
+    old = {k: v for k, v in ours.config.to_dict().items() if k not in PAPER or k == "contrastive_pull"}
+    assert OdmoConfig.from_dict(old).to_dict() | {"foot_joints": (8, 10), "foot_heights": (0.05, 0.05)} == (
+        OdmoConfig(n_actions=3, n_joints=11, **PAPER).to_dict()
+        | {"foot_joints": (8, 10), "foot_heights": (0.05, 0.05)}
+    )
