@@ -6,8 +6,9 @@ Run under X (or ``xvfb-run -a -s "-screen 0 1920x1080x24"``)::
 
 Writes 01_click_decode.png (a clicked code playing beside the mode ellipses), 02_drag_interpolation_strip.png
 (a drag between two modes of one action, released into a strip), 03_lasso_local_mode_samples.png (a lasso,
-its local mode and samples around it) and 04_tsne_energy_samples.png (t-SNE coloured by motion energy
-with new samples placed on the map).
+its local mode and samples around it), 04_tsne_energy_samples.png (t-SNE coloured by motion energy
+with new samples placed on the map) and 05_walk_to_run_in_sequence.png (a drag from a walk onto a run,
+decoded across the two actions and chained in sequence, with the Find panel's nearest neighbours).
 """
 
 from __future__ import annotations
@@ -110,6 +111,25 @@ def main() -> int:
     c.sample("mode_preserving", 10, 0)
     _settle(explorer, 1.5)
     take_screenshot(explorer, args.out / "04_tsne_energy_samples.png")
+
+    c.clear_selection()
+    c.state.projection = "pca"
+    c.state.color_by = "action"
+    _settle(explorer)
+    names = c.loaded.action_names
+    run = names.index("run") if "run" in names else min(1, len(names) - 1)
+    walk_code, run_code = _two_modes(explorer, walk)[0], _two_modes(explorer, run)[0]
+    window.layout_combo.setCurrentIndex(window.layout_combo.findData("sequence"))
+    window.find_dock.raise_()
+    emb = c.state.embedding
+    c.drag_start(walk_code)
+    for s in np.linspace(0.0, 1.0, 6)[1:]:
+        xy = (1 - s) * emb[walk_code] + s * emb[run_code]
+        c.drag_move(float(xy[0]), float(xy[1]))
+        _settle(explorer, 0.05)
+    c.drag_finish(float(emb[run_code][0]), float(emb[run_code][1]))
+    _settle(explorer, 2.0)
+    take_screenshot(explorer, args.out / "05_walk_to_run_in_sequence.png")
     explorer.close()
     print(f"screenshots written to {args.out}")
     return 0

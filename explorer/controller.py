@@ -677,12 +677,13 @@ class Controller(QObject):
     def drag_finish(self, x: float, y: float) -> None:
         """Leave an interpolation strip from the drag's start to the point (or position) released on."""
         start, self._drag_from = self._drag_from, None
-        if self._live_marker is not None:
-            self.state.marker, self._live_marker = self._live_marker, None
+        self._live_marker = None
         if start is None or self.projection is None:
             return
         xy = np.array([x, y])
         target = self._snap(xy)
+        # released on a code: both ends are selected (ringed); in empty space the star marks the end
+        self.state.marker = None if target is not None else xy.astype(np.float64)
         code_a, action, end_a = self.bank_item(start)
         action_b = action
         if target is not None:
@@ -761,6 +762,7 @@ class Controller(QObject):
         inside = points_in_polygon(self.state.embedding, np.asarray(polygon, dtype=np.float64))
         inside &= ~np.isin(self.bank.actions, list(self.state.hidden_actions))
         self.state.selection = tuple(int(i) for i in np.flatnonzero(inside))
+        self.state.marker = None
         self.window.show_status(
             f"Lasso selected {len(self.state.selection)} codes (Selection menu: play, …)."
         )

@@ -78,11 +78,12 @@ class MainWindow(QMainWindow):
             "Trajectory (top view)", "dock_trajectory", self.trajectory, Qt.LeftDockWidgetArea
         )
         self.find_dock = self._dock("Find", "dock_find", self.find_panel, Qt.LeftDockWidgetArea)
+        self.splitDockWidget(self.mode_dock, self.trajectory_dock, Qt.Vertical)
         self.tabifyDockWidget(self.mode_dock, self.find_dock)
         self.mode_dock.raise_()
-        self.splitDockWidget(self.mode_dock, self.trajectory_dock, Qt.Vertical)
         self.resizeDocks([self.viewport_dock], [560], Qt.Horizontal)
         self.resizeDocks([self.mode_dock], [330], Qt.Horizontal)
+        self.resizeDocks([self.timeline_dock], [40], Qt.Vertical)
 
         self._build_toolbar()
         self._build_menus()
@@ -119,7 +120,8 @@ class MainWindow(QMainWindow):
         dock = QDockWidget(title, self)
         dock.setObjectName(name)
         dock.setWidget(widget)
-        widget.setMinimumSize(160, 120)  # a shrunken window cannot squeeze a panel to a sliver
+        if area != Qt.BottomDockWidgetArea:  # a shrunken window cannot squeeze a panel to a sliver
+            widget.setMinimumSize(160, 120)
         dock.setFeatures(
             QDockWidget.DockWidgetMovable | QDockWidget.DockWidgetFloatable | QDockWidget.DockWidgetClosable
         )

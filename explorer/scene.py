@@ -51,7 +51,8 @@ def short_label(item: Decoded, action_names: Sequence[str]) -> str:
     if item.code is None:
         return f"{name} (real)"
     words = item.label.split(" · ")[0].split()
-    what = " ".join(w for w in words if "/" in w or w.startswith("#"))
+    steps = [w for w in words if "/" in w and not w.endswith((".bvh", ".npz"))]
+    what = steps[-1] if steps else next((w for w in words if w.startswith("#")), "")
     return f"{name} {what}".strip()
 
 

@@ -60,7 +60,7 @@ class SkeletonViewport(QWidget):
     """A 3-D view of ``n`` skeletons (y up) whose poses are updated in place, plus path, end and ghosts."""
 
     def __init__(
-        self, parent: QWidget | None = None, *, floor_size: float = 10.0, multi_samples: int = 0
+        self, parent: QWidget | None = None, *, floor_size: float = 30.0, multi_samples: int = 0
     ) -> None:
         """Create the view; ``multi_samples`` > 0 turns on MSAA (cheap on a GPU, slow in software GL)."""
         super().__init__(parent)

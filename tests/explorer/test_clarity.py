@@ -153,3 +153,25 @@ def test_polish_pause_icon_progress_and_empty_view(qtbot, explorer: Opened) -> N
     w.resize(1500, 900)
     qtbot.wait(50)
     assert w.viewport.width() >= 240 and w.viewport.height() >= 200
+
+
+def test_no_stale_star_or_diamonds_after_new_gestures(qtbot, explorer: Opened) -> None:
+    c, w = explorer.controller, explorer.window
+    emb = c.state.embedding
+    corner = emb.min(axis=0) - 0.02 * np.ptp(emb, axis=0)
+    with qtbot.waitSignal(c.shownChanged, timeout=20_000):
+        click_map(qtbot, explorer, corner)  # empty space: decoded and starred
+    assert len(w.latent_map._marker.data) == 1
+    w.mode_panel.n_box.setValue(3)
+    with qtbot.waitSignal(c.shownChanged, timeout=30_000):
+        qtbot.mouseClick(w.mode_panel.sample_button, Qt.MouseButton.LeftButton)
+    assert len(w.latent_map.extra_points()) == 3
+    a, b = isolated_points(emb, 2)
+    drag_map(qtbot, explorer, [emb[a] + t * (emb[b] - emb[a]) for t in np.linspace(0, 1, 4)])
+    qtbot.waitUntil(
+        lambda: c._drag_from is None and len(c.state.shown) == w.steps_spin.value(), timeout=20_000
+    )
+    assert len(w.latent_map._marker.data) == 0, "released on a code: the rings mark the ends, no star"
+    with qtbot.waitSignal(c.shownChanged, timeout=20_000):
+        click_map(qtbot, explorer, emb[a])
+    assert len(w.latent_map.extra_points()) == 0 and len(w.latent_map._marker.data) == 0
