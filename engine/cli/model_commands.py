@@ -235,14 +235,11 @@ def _bank_locked(args: argparse.Namespace) -> int:
 
 
 def _cmd_sample(args: argparse.Namespace) -> int:
-    from engine.generators import open_generator
+    from engine.generators import SampleRequest, open_generator
 
     check_count("--n", args.n)
-    generator = open_generator(args.model)
-    end = _end(args)
-    samples = generator.sample(
-        args.action, args.n, args.seed, strategy=args.strategy, mode=args.mode, end=end
-    )
+    request = SampleRequest(args.action, args.n, args.seed, args.strategy, args.mode, _end(args))
+    samples = open_generator(args.model).sample(request)
     _write(samples, args.out, args.action)
     return 0
 

@@ -11,14 +11,13 @@ import numpy as np
 from engine.a2m_io import LoadedA2m, generate_a2m, load_a2m
 from engine.errors import ConfigError
 from engine.generate import Sample
-from engine.generators.base import CodeSpace, Generator, refusal, require
+from engine.generators.base import CodeSpace, FolderGenerator, Generator, SampleRequest, refusal, require
 from engine.latent.bank import LatentBank
 from engine.motion.motion import Motion
-from engine.motion.skeleton import Skeleton
 
 
 @dataclass(eq=False)
-class A2mGenerator:
+class A2mGenerator(FolderGenerator):
     """A loaded Action2Motion folder (``loaded``) seen through the Generator interface."""
 
     loaded: LoadedA2m
@@ -27,55 +26,22 @@ class A2mGenerator:
     bank: LatentBank | None = None
 
     @property
-    def path(self) -> Path:
-        """The model folder."""
-        return self.loaded.path
-
-    @property
-    def skeleton(self) -> Skeleton:
-        """The skeleton sampled motions are on."""
-        return self.loaded.skeleton
-
-    @property
-    def fps(self) -> float:
-        """Frames per second of sampled motions."""
-        return self.loaded.fps
-
-    @property
-    def window(self) -> int:
-        """Frames per sampled motion."""
-        return self.loaded.window
-
-    @property
-    def action_names(self) -> list[str]:
-        """The actions it is conditioned on."""
-        return list(self.loaded.action_names)
-
-    @property
     def code_space(self) -> CodeSpace:
         """The per-frame latent z_t of its temporal VAE, window frames of it per motion."""
         return CodeSpace("z_t per frame", int(self.loaded.config.latent_dim) * self.window)
 
-    def sample(
-        self,
-        action: str | None,
-        n: int,
-        seed: int,
-        *,
-        strategy: str | None = None,
-        mode: int | None = None,
-        end: np.ndarray | None = None,
-    ) -> list[Sample]:
-        """``n`` motions of ``action`` from the learned prior, at display height."""
-        if mode is not None or strategy not in (None, "prior"):
+    def sample(self, request: SampleRequest) -> list[Sample]:
+        """Motions of the action from the learned prior, at display height."""
+        action, seed = request.action, request.seed
+        if request.mode is not None or request.strategy not in (None, "prior"):
             require(self, "modes", "sample from modes (it samples from its learned prior)")
-        if end is not None:
+        if request.end is not None:
             require(self, "end", "take an end location")
         if action is None or action not in self.loaded.action_names:
             known = ", ".join(self.loaded.action_names)
             raise ConfigError(f"unknown action {action!r}; the model knows: {known}")
         index = self.loaded.action_names.index(action)
-        joints = generate_a2m(self.loaded, index, n, seed)
+        joints = generate_a2m(self.loaded, index, request.n, seed)
         joints[..., 1] += np.float32(self.loaded.root_height)  # its origin is frame 0's root on the floor
         meta = {"action": action, "seed": seed, "model": str(self.path), "kind": self.kind}
         return [

@@ -11,7 +11,7 @@ from __future__ import annotations
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Protocol, runtime_checkable
+from typing import TYPE_CHECKING, Any, Protocol, runtime_checkable
 
 import numpy as np
 
@@ -54,6 +54,53 @@ class CodeSpace:
     size: int
 
 
+@dataclass(frozen=True, eq=False)
+class SampleRequest:
+    """What to sample: ``n`` motions of ``action`` (None for an unconditional kind) from ``seed``.
+
+    ``strategy`` and ``mode`` pick how codes are drawn (None: the kind's default); ``end`` (3,) is where
+    the motion should end, for kinds with the "end" capability.
+    """
+
+    action: str | None
+    n: int
+    seed: int
+    strategy: str | None = None
+    mode: int | None = None
+    end: np.ndarray | None = None
+
+
+class FolderGenerator:
+    """What every kind reads from its loaded folder ``loaded``: path, skeleton, fps, window, actions."""
+
+    loaded: Any
+
+    @property
+    def path(self) -> Path:
+        """The model folder."""
+        return self.loaded.path
+
+    @property
+    def skeleton(self) -> Skeleton:
+        """The skeleton generated motions are on."""
+        return self.loaded.skeleton
+
+    @property
+    def fps(self) -> float:
+        """Frames per second of generated motions."""
+        return self.loaded.fps
+
+    @property
+    def window(self) -> int:
+        """Frames per generated motion."""
+        return self.loaded.window
+
+    @property
+    def action_names(self) -> list[str] | None:
+        """The actions it is conditioned on (None for an unconditional kind)."""
+        return list(self.loaded.action_names)
+
+
 @runtime_checkable
 class Generator(Protocol):
     """What the CLI and the app need of a generator kind; optional methods follow ``capabilities``."""
@@ -68,17 +115,8 @@ class Generator(Protocol):
     capabilities: frozenset[str]
     bank: LatentBank | None
 
-    def sample(
-        self,
-        action: str | None,
-        n: int,
-        seed: int,
-        *,
-        strategy: str | None = None,
-        mode: int | None = None,
-        end: np.ndarray | None = None,
-    ) -> list[Sample]:
-        """``n`` motions of ``action`` (None for an unconditional kind); the same seed, the same motions."""
+    def sample(self, request: SampleRequest) -> list[Sample]:
+        """The motions ``request`` asks for; the same request, the same motions."""
         ...
 
     def decode(

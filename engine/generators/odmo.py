@@ -10,47 +10,21 @@ import numpy as np
 
 from engine.errors import ConfigError
 from engine.generate import Sample, decode_batch, encode, interpolate, sample
-from engine.generators.base import CodeSpace, Generator, require
+from engine.generators.base import CodeSpace, FolderGenerator, Generator, SampleRequest, require
 from engine.latent.bank import LatentBank
 from engine.modelio import LoadedModel, load_model
 from engine.motion.motion import Motion
-from engine.motion.skeleton import Skeleton
 
 _ALWAYS = frozenset({"decode", "interpolate", "encode", "follow_path", "bank"})
 _WITH_BANK = frozenset({"sample", "modes"})
 
 
 @dataclass(eq=False)
-class OdmoGenerator:
+class OdmoGenerator(FolderGenerator):
     """A loaded ODMO model folder (``loaded``) seen through the Generator interface."""
 
     loaded: LoadedModel
     kind: str = "odmo"
-
-    @property
-    def path(self) -> Path:
-        """The model folder."""
-        return self.loaded.path
-
-    @property
-    def skeleton(self) -> Skeleton:
-        """The skeleton decoded motions are on."""
-        return self.loaded.skeleton
-
-    @property
-    def fps(self) -> float:
-        """Frames per second of decoded motions."""
-        return self.loaded.fps
-
-    @property
-    def window(self) -> int:
-        """Frames per decoded motion."""
-        return self.loaded.window
-
-    @property
-    def action_names(self) -> list[str]:
-        """The actions it is conditioned on."""
-        return list(self.loaded.action_names)
 
     @property
     def code_space(self) -> CodeSpace:
@@ -69,17 +43,9 @@ class OdmoGenerator:
         found = _ALWAYS | (_WITH_BANK if self.loaded.bank is not None else frozenset())
         return found | ({"end"} if self.loaded.config.use_end_location else frozenset())
 
-    def sample(
-        self,
-        action: str | None,
-        n: int,
-        seed: int,
-        *,
-        strategy: str | None = None,
-        mode: int | None = None,
-        end: np.ndarray | None = None,
-    ) -> list[Sample]:
-        """``n`` motions of ``action`` drawn from its modes (mode-preserving unless ``strategy``/``mode``)."""
+    def sample(self, request: SampleRequest) -> list[Sample]:
+        """Motions drawn from the action's modes (mode-preserving unless the request says otherwise)."""
+        action, mode, end = request.action, request.mode, request.end
         if action is None:
             raise ConfigError(
                 f"{self.path}: an ODMO model needs an action; it knows {', '.join(self.action_names)}"
@@ -87,8 +53,8 @@ class OdmoGenerator:
         require(self, "sample", "sample without a latent bank (run `odmo bank`)")
         if end is not None:
             require(self, "end", "take an end location")
-        chosen = "mode" if mode is not None else (strategy or "mode_preserving")
-        return sample(self.loaded, action, n, seed, strategy=chosen, mode=mode, end=end)
+        chosen = "mode" if mode is not None else (request.strategy or "mode_preserving")
+        return sample(self.loaded, action, request.n, request.seed, strategy=chosen, mode=mode, end=end)
 
     def decode(
         self,

@@ -3,9 +3,6 @@ and every command answers bad input with one line naming the file."""
 
 from __future__ import annotations
 
-import hashlib
-import io
-import json
 import os
 import shutil
 import signal
@@ -20,6 +17,7 @@ import pytest
 from engine.cli import main
 from engine.fileio import atomic_write_text, folder_lock
 from engine.modelio import BANK_FILE, META_FILE
+from tests.fixtures.tamper import record_bank_checksum, rewrite_npz
 
 
 @pytest.fixture(scope="module")
@@ -139,19 +137,6 @@ def test_train_refuses_an_existing_file_as_output_before_training(tmp_path: Path
     assert target.read_text() == "{}"
 
 
-def _rewrite_bank_consistently(folder: Path, change) -> None:
-    """Change the bank and record its new checksum, as a buggy tool writing a bad bank would."""
-    with np.load(folder / BANK_FILE, allow_pickle=False) as npz:
-        arrays = {k: npz[k] for k in npz.files}
-    change(arrays)
-    buffer = io.BytesIO()
-    np.savez(buffer, **arrays)
-    (folder / BANK_FILE).write_bytes(buffer.getvalue())
-    meta = json.loads((folder / META_FILE).read_text())
-    meta["bank_sha256"] = hashlib.sha256(buffer.getvalue()).hexdigest()
-    (folder / META_FILE).write_text(json.dumps(meta))
-
-
 @pytest.mark.parametrize(
     ("key", "value", "needle", "process"),
     [
@@ -170,7 +155,8 @@ def test_sample_names_the_bank_of_a_bad_model_folder(
     process: bool,
 ) -> None:
     folder = Path(shutil.copytree(tiny_model_dir, tmp_path / "model"))
-    _rewrite_bank_consistently(folder, lambda arrays: arrays.update({key: np.full_like(arrays[key], value)}))
+    rewrite_npz(folder / BANK_FILE, lambda arrays: arrays.update({key: np.full_like(arrays[key], value)}))
+    record_bank_checksum(folder)
     args = ("sample", "--model", str(folder), "--action", "walk", "--out", str(tmp_path / "x.npz"))
     if process:
         run = _odmo(*args)

@@ -15,6 +15,7 @@ from engine.motion import Motion, Skeleton
 from engine.motion.bvh import read_bvh
 from engine.motion.datasets import drop_extra_joints, load_folder
 from engine.motion.npz import write_npz
+from tests.fixtures.tamper import rewrite_npz
 
 BANDAI_ACTIONS = [
     "walk",
@@ -212,15 +213,6 @@ def _cache_file(private_cache: Path) -> Path:
     return found
 
 
-def _rewrite_cache(path: Path, change) -> None:
-    """Rewrite the cache's arrays through ``change(arrays)``: a well-formed file with other content."""
-    with np.load(path, allow_pickle=False) as npz:
-        arrays = {k: npz[k] for k in npz.files}
-    change(arrays)
-    with path.open("wb") as handle:
-        np.savez(handle, **arrays)
-
-
 def _zero_joints(arrays: dict) -> None:
     arrays["joints"] = np.zeros_like(arrays["joints"])
 
@@ -246,9 +238,9 @@ def _flip_bytes(path: Path) -> None:
 @pytest.mark.parametrize(
     "damage",
     [
-        lambda p: _rewrite_cache(p, _zero_joints),
-        lambda p: _rewrite_cache(p, _nan_joints),
-        lambda p: _rewrite_cache(p, _rename_joint),
+        lambda p: rewrite_npz(p, _zero_joints),
+        lambda p: rewrite_npz(p, _nan_joints),
+        lambda p: rewrite_npz(p, _rename_joint),
         _flip_bytes,
         lambda p: p.write_bytes(p.read_bytes()[: p.stat().st_size // 3]),
         lambda p: p.write_bytes(b"not a zip at all"),

@@ -15,7 +15,15 @@ import pytest
 
 from engine.cli import main
 from engine.errors import ModelFormatError
-from engine.generators import CAPABILITIES, CapabilityError, Generator, kinds, open_generator, require
+from engine.generators import (
+    CAPABILITIES,
+    CapabilityError,
+    Generator,
+    SampleRequest,
+    kinds,
+    open_generator,
+    require,
+)
 from engine.motion.npz import read_npz
 
 pytestmark = pytest.mark.usefixtures("torch_single_thread")
@@ -42,7 +50,7 @@ def test_open_picks_the_kind_from_model_json(folder: Path) -> None:
 def test_samples_have_the_models_shape_units_and_skeleton(folder: Path) -> None:
     generator = open_generator(folder)
     action = generator.action_names[1]
-    samples = generator.sample(action, 3, seed=5)
+    samples = generator.sample(SampleRequest(action, 3, 5))
     assert len(samples) == 3
     for s in samples:
         m = s.motion
@@ -57,9 +65,9 @@ def test_samples_have_the_models_shape_units_and_skeleton(folder: Path) -> None:
 def test_same_seed_same_motions_other_seed_others(folder: Path) -> None:
     generator = open_generator(folder)
     action = generator.action_names[0]
-    a = [s.motion.joints for s in generator.sample(action, 2, seed=11)]
-    b = [s.motion.joints for s in generator.sample(action, 2, seed=11)]
-    c = [s.motion.joints for s in generator.sample(action, 2, seed=12)]
+    a = [s.motion.joints for s in generator.sample(SampleRequest(action, 2, 11))]
+    b = [s.motion.joints for s in generator.sample(SampleRequest(action, 2, 11))]
+    c = [s.motion.joints for s in generator.sample(SampleRequest(action, 2, 12))]
     assert all(np.array_equal(x, y) for x, y in zip(a, b, strict=True))
     assert not np.allclose(a[0], c[0])
 
@@ -67,8 +75,8 @@ def test_same_seed_same_motions_other_seed_others(folder: Path) -> None:
 def test_a_copied_folder_reopens_to_the_same_motions(folder: Path, tmp_path: Path) -> None:
     copy = Path(shutil.copytree(folder, tmp_path / "copy"))
     action = open_generator(folder).action_names[2]
-    first = open_generator(folder).sample(action, 2, seed=3)
-    again = open_generator(copy).sample(action, 2, seed=3)
+    first = open_generator(folder).sample(SampleRequest(action, 2, 3))
+    again = open_generator(copy).sample(SampleRequest(action, 2, 3))
     for x, y in zip(first, again, strict=True):
         np.testing.assert_array_equal(x.motion.joints, y.motion.joints)
 
@@ -97,7 +105,7 @@ def test_cli_sample_opens_every_kind(folder: Path, tmp_path: Path) -> None:
     )
     files = sorted(out.glob("*.npz"))
     assert [f.name for f in files] == [f"{action}_000.npz", f"{action}_001.npz"]
-    expected = generator.sample(action, 2, seed=4)
+    expected = generator.sample(SampleRequest(action, 2, 4))
     for f, s in zip(files, expected, strict=True):
         np.testing.assert_allclose(read_npz(f).joints, s.motion.joints, atol=1e-6)
 
@@ -107,7 +115,7 @@ def test_declared_capabilities_work_and_the_others_are_refused(
 ) -> None:
     generator = open_generator(folder)
     action = generator.action_names[0]
-    clip = generator.sample(action, 1, seed=0)[0].motion
+    clip = generator.sample(SampleRequest(action, 1, 0))[0].motion
     clip.save(tmp_path / "clip.npz")
     model = ["--model", str(folder), "--action", action]
     bank = generator.bank

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import io
 import json
 import shutil
 from pathlib import Path
@@ -14,6 +13,7 @@ from engine.errors import ConfigError, ModelFormatError
 from engine.latent.bank import LatentBank
 from engine.model.config import OdmoConfig
 from engine.modelio import BANK_FILE, META_FILE, WEIGHTS_FILE, load_model, read_meta
+from tests.fixtures.tamper import record_bank_checksum, rewrite_npz
 
 pytestmark = pytest.mark.usefixtures("torch_single_thread")
 
@@ -48,33 +48,19 @@ def test_flipped_weight_bytes_are_refused(folder: Path) -> None:
         load_model(folder)
 
 
-def _rewrite_bank(folder: Path, change) -> None:
-    """Rewrite the bank's arrays through ``change(arrays)``, a well-formed file with other content."""
-    with np.load(folder / BANK_FILE, allow_pickle=False) as npz:
-        arrays = {k: npz[k] for k in npz.files}
-    change(arrays)
-    buffer = io.BytesIO()
-    np.savez(buffer, **arrays)
-    (folder / BANK_FILE).write_bytes(buffer.getvalue())
-
-
 def test_edited_bank_fails_its_checksum(folder: Path) -> None:
     def huge_means(arrays: dict) -> None:
         arrays["modes/0/means"] = np.full_like(arrays["modes/0/means"], 1e30)
 
-    _rewrite_bank(folder, huge_means)
+    rewrite_npz(folder / BANK_FILE, huge_means)
     with pytest.raises(ModelFormatError, match=r"latent_bank\.npz: content does not match the checksum"):
         load_model(folder)
 
 
-def test_bank_of_other_weights_is_refused(folder: Path, tmp_path: Path) -> None:
+def test_bank_of_other_weights_is_refused(folder: Path) -> None:
     """A bank whose checksum is recorded but that names other weights (e.g. a stale copy) is refused."""
-    import hashlib
-
-    _rewrite_bank(folder, lambda arrays: arrays.update(weights_sha256=np.asarray("0" * 64)))
-    meta = _meta(folder)
-    meta["bank_sha256"] = hashlib.sha256((folder / BANK_FILE).read_bytes()).hexdigest()
-    _write_meta(folder, meta)
+    rewrite_npz(folder / BANK_FILE, lambda arrays: arrays.update(weights_sha256=np.asarray("0" * 64)))
+    record_bank_checksum(folder)
     with pytest.raises(ModelFormatError, match="built from other weights"):
         load_model(folder)
 
@@ -113,7 +99,7 @@ def test_retraining_into_a_folder_removes_the_old_bank(folder: Path) -> None:
     ],
 )
 def test_bank_values_are_validated_on_load(folder: Path, key: str, value, match: str) -> None:
-    _rewrite_bank(folder, lambda arrays: arrays.update({key: value(arrays[key])}))
+    rewrite_npz(folder / BANK_FILE, lambda arrays: arrays.update({key: value(arrays[key])}))
     with pytest.raises(ModelFormatError, match=match):
         LatentBank.load(folder / BANK_FILE)
 
