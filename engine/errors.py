@@ -45,3 +45,7 @@ class FolderBusyError(OdmoError):
 
 class TooLargeError(OdmoError):
     """An input file or a requested size exceeds the stated limits (see :mod:`engine.limits`)."""
+
+
+class OutputError(OdmoError):
+    """An output file or folder cannot be written (no such folder, a file in the way, no space, no right)."""

@@ -18,7 +18,7 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import IO
 
-from engine.errors import FolderBusyError, OdmoError
+from engine.errors import FolderBusyError, OutputError
 
 log = logging.getLogger(__name__)
 
@@ -30,9 +30,12 @@ _TEMP_RE = re.compile(r"^\..+\.odmo-(?P<pid>\d+)-[A-Za-z0-9_]+\.tmp$")
 def atomic_write(path: str | Path, mode: str = "w", **kwargs) -> Iterator[IO]:
     """Open a temporary sibling of ``path`` for writing and move it into place on success."""
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    remove_stale_temporaries(path.parent)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.odmo-{os.getpid()}-", suffix=".tmp", dir=path.parent)
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        remove_stale_temporaries(path.parent)
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.odmo-{os.getpid()}-", suffix=".tmp", dir=path.parent)
+    except OSError as exc:
+        raise OutputError(f"{path}: cannot write there ({_reason(exc)})") from None
     try:
         with os.fdopen(fd, mode, **kwargs) as handle:
             yield handle
@@ -40,10 +43,21 @@ def atomic_write(path: str | Path, mode: str = "w", **kwargs) -> Iterator[IO]:
             os.fsync(handle.fileno())
         os.chmod(tmp, 0o666 & ~_umask())
         os.replace(tmp, path)
-    except BaseException:
+    except BaseException as exc:
         with contextlib.suppress(FileNotFoundError):
             os.unlink(tmp)
+        if isinstance(exc, OSError):
+            raise OutputError(f"{path}: writing failed, nothing was written ({_reason(exc)})") from None
         raise
+
+
+def _reason(exc: OSError) -> str:
+    """The plain reason of an OS error (no errno, no repeated path)."""
+    reasons = {
+        errno.EEXIST: "a file is in the way of a folder",
+        errno.ENOTDIR: "a file is in the way of a folder",
+    }
+    return reasons.get(exc.errno, exc.strerror or str(exc))
 
 
 def remove_stale_temporaries(folder: str | Path) -> list[Path]:
@@ -111,7 +125,7 @@ def folder_lock(folder: str | Path, what: str = "writing") -> Iterator[Path]:
         folder.mkdir(parents=True, exist_ok=True)
         fd = os.open(folder / LOCK_FILE, os.O_RDWR | os.O_CREAT, 0o666)
     except OSError as exc:
-        raise OdmoError(f"{folder}: cannot write there ({exc.strerror or exc})") from None
+        raise OutputError(f"{folder}: cannot write there ({_reason(exc)})") from None
     try:
         try:
             fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)

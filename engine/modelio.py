@@ -170,7 +170,7 @@ def check_checksum(path: Path, data: bytes, meta: dict[str, Any], key: str) -> N
 def read_meta(path: Path) -> dict[str, Any]:
     """Parsed ``model.json``, checked for format, version (none newer than this program) and keys."""
     try:
-        meta = json.loads(path.read_text(encoding="utf-8"))
+        meta = json.loads(read_bytes(path, "model description").decode("utf-8"))
     except FileNotFoundError:
         raise ModelFormatError(f"{path}: missing (not a model folder?)") from None
     except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
