@@ -3,10 +3,11 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import re
 import sys
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -45,16 +46,19 @@ def output_paths(out: Path, n: int, stem: str) -> list[Path]:
     return [out / f"{stem}_{i:03d}.npz" for i in range(n)]
 
 
-def _write(samples: list[Sample], out: Path, stem: str) -> None:
-    paths = output_paths(out, len(samples), stem)
+@contextlib.contextmanager
+def _outputs(out: Path, n: int, stem: str) -> Iterator[list[Path]]:
+    """Where ``n`` motions go; several files keep their folder locked for the whole command, so that a
+    second writer into it fails at once instead of overwriting them."""
+    paths = output_paths(out, n, stem)
     if len(paths) == 1:
-        _write_all(samples, paths)
+        yield paths
         return
     with folder_lock(paths[0].parent, "writing motions"):
-        _write_all(samples, paths)
+        yield paths
 
 
-def _write_all(samples: list[Sample], paths: list[Path]) -> None:
+def _write(samples: list[Sample], paths: list[Path]) -> None:
     for s, path in zip(samples, paths, strict=True):
         s.motion.save(path)
         mode = "" if s.mode < 0 else f" mode {s.mode}"
@@ -239,8 +243,8 @@ def _cmd_sample(args: argparse.Namespace) -> int:
 
     check_count("--n", args.n)
     request = SampleRequest(args.action, args.n, args.seed, args.strategy, args.mode, _end(args))
-    samples = open_generator(args.model).sample(request)
-    _write(samples, args.out, args.action)
+    with _outputs(args.out, args.n, args.action) as paths:
+        _write(open_generator(args.model).sample(request), paths)
     return 0
 
 
@@ -248,11 +252,11 @@ def _cmd_interpolate(args: argparse.Namespace) -> int:
     from engine.generators import open_generator, require
 
     check_count("--steps", args.steps)
-    generator = open_generator(args.model)
-    require(generator, "interpolate")
-    a, b = (endpoint_code(generator, text, args.action) for text in (args.from_, args.to))
-    samples = generator.interpolate(a, b, args.action, args.steps, method=args.method)
-    _write(samples, args.out, f"{args.action}_{args.from_}_{args.to}")
+    with _outputs(args.out, args.steps, f"{args.action}_{args.from_}_{args.to}") as paths:
+        generator = open_generator(args.model)
+        require(generator, "interpolate")
+        a, b = (endpoint_code(generator, text, args.action) for text in (args.from_, args.to))
+        _write(generator.interpolate(a, b, args.action, args.steps, method=args.method), paths)
     return 0
 
 

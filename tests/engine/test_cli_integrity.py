@@ -17,6 +17,7 @@ import pytest
 from engine.cli import main
 from engine.fileio import atomic_write_text, folder_lock
 from engine.modelio import BANK_FILE, META_FILE
+from engine.motion.npz import read_npz
 from tests.fixtures.tamper import record_bank_checksum, rewrite_npz
 
 
@@ -201,3 +202,29 @@ def test_info_labels_a_folder_by_pattern(procedural_dir: Path, capsys: pytest.Ca
     run = _odmo_here(capsys, "info", str(procedural_dir), "--pattern", r"^(?P<action>[a-z]+)_")
     assert run.returncode == 0, run.stderr
     assert "generic layout" in run.stdout and "walk" in run.stdout
+
+
+def test_two_concurrent_samplers_into_one_folder_never_mix(tiny_model_dir: Path, tmp_path: Path) -> None:
+    """Started together: one writes all its files, the other fails at once and writes none."""
+    out = tmp_path / "samples"
+    procs = [
+        subprocess.Popen(
+            [sys.executable, "-m", "engine", "sample", "--model", str(tiny_model_dir), "--action", "walk",
+             "--n", "20", "--seed", str(seed), "--out", str(out)],
+            stdout=subprocess.DEVNULL,
+            stderr=subprocess.PIPE,
+            text=True,
+        )
+        for seed in (1, 2)
+    ]  # fmt: skip
+    results = [(p.wait(timeout=300), p.stderr.read()) for p in procs]
+    for p in procs:
+        p.stderr.close()
+    codes = sorted(code for code, _ in results)
+    assert codes == [0, 1], results
+    loser = next(err for code, err in results if code == 1)
+    assert "another odmo process (pid" in loser and "Traceback" not in loser
+    winner_seed = 1 + [code for code, _ in results].index(0)
+    files = sorted(out.glob("*.npz"))
+    assert len(files) == 20
+    assert {read_npz(f).meta["seed"] for f in files} == {winner_seed}
