@@ -118,10 +118,13 @@ def travel_direction(motion: Motion) -> tuple[np.ndarray, float]:
     return (delta / distance if distance > 1e-9 else np.array([1.0, 0.0])), distance
 
 
-def timelapse_image(motion: Motion, count: int = 8, panel: int = 180, title: str = "") -> QImage:
+def timelapse_image(
+    motion: Motion, count: int = 8, panel: int = 180, title: str = "", upto: int | None = None
+) -> QImage:
     """``count`` poses of ``motion`` seen from the side of its travel: a pose is drawn where the body is
     along the path (the horizontal axis is the distance travelled), so the strip shows progress; a
-    motion that stays in place gets one panel per pose instead."""
+    motion that stays in place gets one panel per pose instead. With ``upto``, only the poses up to
+    that frame are drawn (same layout), which makes the frames of a time-lapse video."""
     frames = timelapse_frames(motion.n_frames, count)
     joints = motion.joints[frames].astype(np.float64)
     parents = motion.skeleton.parents
@@ -152,6 +155,8 @@ def timelapse_image(motion: Motion, count: int = 8, panel: int = 180, title: str
     painter.setPen(QPen(QColor("#5a5d63"), 1))
     painter.drawLine(QPointF(6, floor_y), QPointF(width_px - 6, floor_y))
     for k, frame in enumerate(frames):
+        if upto is not None and frame > upto:
+            break
 
         def to_px(j: int, k: int = k) -> QPointF:
             return QPointF(left + along[k, j] * scale, floor_y - (joints[k, j, 1] - floor) * scale)
@@ -176,6 +181,20 @@ def timelapse_image(motion: Motion, count: int = 8, panel: int = 180, title: str
                          f"side view: {distance:.2f} m travelled →")  # fmt: skip
     painter.end()
     return image
+
+
+def qimage_rgb(image: QImage) -> np.ndarray:
+    """(H, W, 3) uint8 RGB pixels of ``image``."""
+    rgb = image.convertToFormat(QImage.Format.Format_RGB888)
+    data = np.frombuffer(rgb.constBits(), np.uint8, rgb.sizeInBytes()).reshape(
+        rgb.height(), rgb.bytesPerLine()
+    )
+    return data[:, : rgb.width() * 3].reshape(rgb.height(), rgb.width(), 3).copy()
+
+
+def timelapse_video_frames(motion: Motion, count: int = 8, title: str = "") -> list[np.ndarray]:
+    """One (H, W, 3) image per frame of ``motion``: the time-lapse drawn up to that frame."""
+    return [qimage_rgb(timelapse_image(motion, count, title=title, upto=f)) for f in range(motion.n_frames)]
 
 
 def save_timelapse(item: Decoded, path: str | Path, model_path: str, count: int = 8) -> Path:

@@ -29,6 +29,7 @@ FILTERS = {
     "map": "PNG (*.png)",
     "timelapse": "PNG (*.png)",
     "video": "MP4 video (*.mp4);;GIF (*.gif)",
+    "timelapse video": "MP4 video (*.mp4);;GIF (*.gif)",
 }
 MAP_WIDTH_PX = 2000
 
@@ -53,6 +54,7 @@ class Exporter(QObject):
         w.export_map_action.triggered.connect(lambda: self.ask("map"))
         w.export_selection_action.triggered.connect(lambda: self.ask("selection"))
         w.export_video_action.triggered.connect(lambda: self.ask("video"))
+        w.export_timelapse_video_action.triggered.connect(lambda: self.ask("timelapse video"))
 
     def _model_path(self) -> str:
         return str(self.c.loaded.path)
@@ -136,6 +138,18 @@ class Exporter(QObject):
 
         return self.c._guard("Export failed", run)
 
+    def export_timelapse_video(self, path: str | Path) -> Path | None:
+        """Write the time-lapse of the first motion shown, growing pose by pose, as MP4 or GIF."""
+
+        def run() -> Path:
+            if not self.c.state.shown:
+                raise ConfigError("no motion is shown")
+            item = self.c.state.shown[0]
+            frames = export.timelapse_video_frames(item.motion, title=item.label)
+            return write_video(frames, path, float(item.motion.fps))
+
+        return self.c._guard("Export failed", run)
+
     def ask(self, what: str) -> None:
         """Ask where to export ``what`` (a file name is suggested), then export it."""
         shown = self.c.state.shown
@@ -161,6 +175,7 @@ class Exporter(QObject):
                 "selection": self.export_selection,
                 "timelapse": self.export_timelapse,
                 "video": self.export_video,
+                "timelapse video": self.export_timelapse_video,
             }[what]
             done = run(path)
         if done:

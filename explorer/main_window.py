@@ -191,6 +191,7 @@ class MainWindow(QMainWindow):
         self.export_timelapse_action = file_menu.addAction("Export &time-lapse strip (PNG)…")
         self.export_map_action = file_menu.addAction("Export &map (PNG)…")
         self.export_video_action = file_menu.addAction("Export 3-D &video (MP4 / GIF)…")
+        self.export_timelapse_video_action = file_menu.addAction("Export time-lapse v&ideo (MP4 / GIF)…")
         file_menu.addSeparator()
         self.quit_action = file_menu.addAction("&Quit")
         self.quit_action.setShortcut(QKeySequence.Quit)

@@ -54,8 +54,13 @@ def test_mp4_and_gif_hold_every_frame_of_the_3d_view(qtbot, explorer: Opened, tm
     from PIL import Image
 
     gif = c.exporter.export_video(tmp_path / "walk.gif")
-    with Image.open(gif) as image:
-        assert image.n_frames == motion.n_frames
+    with Image.open(gif) as image:  # (GIF merges identical consecutive frames: count the play time)
+        total = 0
+        for k in range(image.n_frames):
+            image.seek(k)
+            total += image.info["duration"]
+        assert total == pytest.approx(motion.n_frames * 1000 / motion.fps, rel=0.05)
+        assert image.n_frames > motion.n_frames // 2
     assert sorted(p.name for p in tmp_path.iterdir()) == ["walk.gif", "walk.mp4"]
 
 
@@ -116,3 +121,26 @@ def test_time_lapse_spreads_a_walk_along_its_path(explorer: Opened) -> None:
     assert np.ptp(moving) > 0.5 * 6 * 180, "the poses are spread along the path"
     still = timelapse_image(standing, 6, title="still")
     assert still.width() == 6 * 180
+
+
+def test_time_lapse_video_grows_pose_by_pose(qtbot, explorer: Opened, tmp_path: Path) -> None:
+    c = explorer.controller
+    _play(qtbot, explorer, _walker(explorer))
+    motion = c.state.shown[0].motion
+    gif = c.exporter.export_timelapse_video(tmp_path / "strip.gif")
+    from PIL import Image
+
+    with Image.open(gif) as image:
+        # GIF merges repeated frames into longer ones: the play time is the motion's, one step per new pose
+        durations = []
+        for k in range(image.n_frames):
+            image.seek(k)
+            durations.append(image.info["duration"])
+        assert sum(durations) == pytest.approx(motion.n_frames * 1000 / motion.fps, rel=0.05)
+        assert 2 <= image.n_frames <= 9
+        image.seek(0)
+        first = np.asarray(image.convert("RGB"), dtype=int)
+        image.seek(image.n_frames - 1)
+        last = np.asarray(image.convert("RGB"), dtype=int)
+    # more of the strip is drawn at the end than at the start
+    assert (np.abs(last - 30).sum(axis=2) > 60).sum() > 2 * (np.abs(first - 30).sum(axis=2) > 60).sum()
