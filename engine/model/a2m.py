@@ -8,23 +8,20 @@ generator p̂_t = D(GRU_θ(E(p_{t-1}, a, c_t, z_t))); p_0 = 0. Encoders and deco
 
 from __future__ import annotations
 
-import dataclasses
 import math
 from dataclasses import dataclass
-from typing import Any
 
 import torch
 import torch.nn.functional as F  # noqa: N812
 from torch import Tensor, nn
 
-from engine.errors import ConfigError, ModelFormatError
-from engine.limits import check_config
+from engine.model.config_base import ModelConfig
 
 A2M_LOSS_TERMS = ("recon", "kl")
 
 
 @dataclass
-class A2mConfig:
+class A2mConfig(ModelConfig):
     """Sizes, loss weight and training schedule of one Action2Motion baseline.
 
     Defaults follow the paper's HumanAct12 setup (GRU hidden 128, z 30 per frame, a 2-layer generator GRU,
@@ -49,37 +46,11 @@ class A2mConfig:
     grad_clip: float = 1.0
     arch: str = "a2m"
 
-    def __post_init__(self) -> None:
-        check_config(self)
-        positive = ("n_actions", "n_joints", "window", "fps", "hidden", "latent_dim", "gen_layers")
-        for name in (*positive, "lr", "batch_size", "epoch_size", "grad_clip"):
-            if not getattr(self, name) > 0:
-                raise ConfigError(f"{name} must be positive, got {getattr(self, name)!r}")
-        if self.window < 2:
-            raise ConfigError(f"window must be at least 2 frames, got {self.window}")
-        if self.kl_weight < 0 or self.weight_decay < 0 or self.epochs < 0:
-            raise ConfigError("kl_weight, weight_decay and epochs must be >= 0")
-        if not 0.0 <= self.tf_rate <= 1.0:
-            raise ConfigError(f"tf_rate must lie in [0, 1], got {self.tf_rate}")
-        if self.arch != "a2m":
-            raise ConfigError(f"unknown architecture {self.arch!r} (expected 'a2m')")
-
-    def to_dict(self) -> dict[str, Any]:
-        """Plain JSON-serialisable dictionary of every field."""
-        return dataclasses.asdict(self)
-
-    @classmethod
-    def from_dict(cls, d: dict[str, Any]) -> A2mConfig:
-        """Config from ``to_dict`` output; unknown or missing keys raise ModelFormatError."""
-        if not isinstance(d, dict):
-            raise ModelFormatError(f"model config must be a JSON object, got {type(d).__name__}")
-        unknown = sorted(set(d) - {f.name for f in dataclasses.fields(cls)})
-        if unknown:
-            raise ModelFormatError(f"unknown model config keys: {', '.join(unknown)}")
-        try:
-            return cls(**d)
-        except (TypeError, ConfigError) as exc:
-            raise ModelFormatError(f"invalid model config: {exc}") from exc
+    POSITIVE = ("n_actions", "n_joints", "window", "fps", "hidden", "latent_dim", "gen_layers", "lr")
+    POSITIVE += ("batch_size", "epoch_size", "grad_clip")
+    NON_NEGATIVE = ("kl_weight", "weight_decay", "epochs")
+    RATES = ("tf_rate",)
+    ARCH = "a2m"
 
 
 class _GaussianGru(nn.Module):

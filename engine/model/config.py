@@ -2,12 +2,11 @@
 
 from __future__ import annotations
 
-import dataclasses
 from dataclasses import dataclass
 from typing import Any
 
-from engine.errors import ConfigError, ModelFormatError
-from engine.limits import check_config
+from engine.errors import ConfigError
+from engine.model.config_base import ModelConfig
 
 #: Fields added after the first models were saved, with the value that reproduces those models.
 _BEFORE_SWITCHES = {
@@ -25,7 +24,7 @@ TRAIN_PRECISIONS = ("float32", "bfloat16")
 
 
 @dataclass
-class OdmoConfig:
+class OdmoConfig(ModelConfig):
     """Sizes, loss weights and training schedule of one ODMO model.
 
     The defaults follow the paper (D = 20, T = 60, LSTM 64 / 128, every loss weight 1, α = 5,
@@ -88,15 +87,16 @@ class OdmoConfig:
     scheduled_sampling: str = "free_run"
     arch: str = "odmo"
 
-    def __post_init__(self) -> None:
-        check_config(self)
-        positive = ("n_actions", "n_joints", "window", "fps", "latent_dim", "enc_hidden", "enc_fc")
-        positive += ("traj_hidden", "motion_hidden", "prior_sigma2", "lr", "batch_size", "epoch_size")
-        for name in positive:
-            if not getattr(self, name) > 0:
-                raise ConfigError(f"{name} must be positive, got {getattr(self, name)!r}")
-        if self.window < 2:
-            raise ConfigError(f"window must be at least 2 frames, got {self.window}")
+    POSITIVE = ("n_actions", "n_joints", "window", "fps", "latent_dim", "enc_hidden", "enc_fc", "traj_hidden")
+    POSITIVE += ("motion_hidden", "prior_sigma2", "lr", "batch_size", "epoch_size")
+    NON_NEGATIVE = ("w_recon", "w_traj", "w_consistency", "w_contrastive", "w_prior", "traj_y_weight")
+    NON_NEGATIVE += ("w_raw", "w_contact", "w_velocity", "contrastive_pull", "epochs", "tf_decay_epochs")
+    RATES = ("tf_start", "tf_end")
+    ARCH = "odmo"
+    BEFORE = _BEFORE_SWITCHES
+
+    def check(self) -> None:
+        """Contrastive pairs, foot joints, precision and scheduled-sampling names."""
         if self.batch_size < 2:
             raise ConfigError("batch_size must be at least 2 (windows come in contrastive pairs)")
         try:
@@ -108,23 +108,12 @@ class OdmoConfig:
             raise ConfigError("foot_heights needs one height per foot joint")
         if any(not 0 <= j < self.n_joints for j in self.foot_joints):
             raise ConfigError(f"foot_joints must be joint indices below {self.n_joints}")
-        weights = ("w_recon", "w_traj", "w_consistency", "w_contrastive", "w_prior", "traj_y_weight")
-        weights += ("w_raw", "w_contact", "w_velocity")
-        for name in (*weights, "contrastive_pull"):
-            if getattr(self, name) < 0:
-                raise ConfigError(f"{name} must be >= 0, got {getattr(self, name)!r}")
-        if self.epochs < 0 or self.tf_decay_epochs < 0:
-            raise ConfigError("epochs and tf_decay_epochs must be >= 0")
-        if not (0.0 <= self.tf_end <= 1.0 and 0.0 <= self.tf_start <= 1.0):
-            raise ConfigError("teacher-forcing rates must lie in [0, 1]")
         if self.train_precision not in TRAIN_PRECISIONS:
             choices = ", ".join(TRAIN_PRECISIONS)
             raise ConfigError(f"train_precision must be one of {choices}, got {self.train_precision!r}")
         if self.scheduled_sampling not in SCHEDULED_SAMPLING:
             choices = ", ".join(SCHEDULED_SAMPLING)
             raise ConfigError(f"scheduled_sampling must be one of {choices}, got {self.scheduled_sampling!r}")
-        if self.arch != "odmo":
-            raise ConfigError(f"unknown architecture {self.arch!r} (expected 'odmo')")
 
     def teacher_forcing(self, epoch: int) -> float:
         """Teacher-forcing rate of ``epoch`` (0-based): linear from tf_start to tf_end, then constant."""
@@ -132,22 +121,3 @@ class OdmoConfig:
             return self.tf_end
         frac = min(epoch / self.tf_decay_epochs, 1.0)
         return self.tf_start + (self.tf_end - self.tf_start) * frac
-
-    def to_dict(self) -> dict[str, Any]:
-        """Plain JSON-serialisable dictionary of every field."""
-        return dataclasses.asdict(self)
-
-    @classmethod
-    def from_dict(cls, d: dict[str, Any]) -> OdmoConfig:
-        """Config from ``to_dict`` output; unknown or missing required keys raise ModelFormatError."""
-        if not isinstance(d, dict):
-            raise ModelFormatError(f"model config must be a JSON object, got {type(d).__name__}")
-        names = {f.name for f in dataclasses.fields(cls)}
-        d = _BEFORE_SWITCHES | d
-        unknown = sorted(set(d) - names)
-        if unknown:
-            raise ModelFormatError(f"unknown model config keys: {', '.join(unknown)}")
-        try:
-            return cls(**d)
-        except (TypeError, ConfigError) as exc:
-            raise ModelFormatError(f"invalid model config: {exc}") from exc
