@@ -111,6 +111,7 @@ class Controller(QObject):
         w, ev = self.window, self.state.events
         w.latent_map.pointClicked.connect(self.click_point)
         w.latent_map.emptyClicked.connect(self.click_empty)
+        w.latent_map.extraClicked.connect(self.click_extra)
         w.latent_map.dragStarted.connect(self.drag_start)
         w.latent_map.dragMoved.connect(self.drag_move)
         w.latent_map.dragFinished.connect(self.drag_finish)
@@ -577,6 +578,15 @@ class Controller(QObject):
     def decoding(self) -> bool:
         """True while a decode request has not been shown yet."""
         return self.decoder.newest > self._shown_request
+
+    def click_extra(self, k: int) -> None:
+        """Decode and play marked point ``k`` (a sample, a variation or an encoded clip's window)."""
+        extra = self.state.extra
+        if self.state.model is None or extra is None or not 0 <= k < len(extra.codes):
+            return
+        self.state.marker = None
+        code, action = extra.codes[k].copy(), int(extra.actions[k])
+        self._decode_code(code, action, f"marked point {k + 1}/{len(extra.codes)}")
 
     def click_point(self, index: int) -> None:
         """Select bank code ``index``, decode it (with the real clip beside it when data is loaded), play."""

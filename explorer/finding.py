@@ -12,6 +12,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from PySide6.QtCore import QObject
 
+from engine.errors import OdmoError
 from explorer.bookmarks import Bookmark, load_bookmarks, new_bookmark, save_bookmarks
 from explorer.state import Decoded
 
@@ -131,8 +132,8 @@ class Finder(QObject):
         mark = new_bookmark(name, sel, [str(bank.sources[i]) for i in sel], self.marks)
         try:
             path = save_bookmarks(self.c.loaded.path, [*self.marks, mark])
-        except OSError as exc:
-            self.c.report_error("Bookmark not saved", f"{exc}")
+        except (OSError, OdmoError) as exc:
+            self.c.report_error("Bookmark not saved", exc)
             return
         self.marks.append(mark)
         self._list_marks()

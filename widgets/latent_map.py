@@ -102,6 +102,7 @@ class LatentMap(QWidget):
     hovered = Signal(int)
     legendToggled = Signal(int, bool)  # noqa: N815
     filesDropped = Signal(list)  # noqa: N815
+    extraClicked = Signal(int)  # noqa: N815
 
     def __init__(
         self, parent: QWidget | None = None, *, point_size: float = 6.0, pick_tolerance_px: float = 8.0
@@ -418,12 +419,26 @@ class LatentMap(QWidget):
         best = int(np.argmin(d2))
         return int(self._shown[best]) if d2[best] <= self._tolerance_px**2 else -1
 
+    def _nearest_extra(self, scene_pos: QPointF) -> int:
+        """Index of the extra point drawn within the pixel tolerance of ``scene_pos``, or -1."""
+        pts = self.extra_points()
+        if not len(pts):
+            return -1
+        pos = self.view_box.mapSceneToView(scene_pos)
+        sx, sy = self.view_box.viewPixelSize()
+        d2 = ((pts[:, 0] - pos.x()) / sx) ** 2 + ((pts[:, 1] - pos.y()) / sy) ** 2
+        best = int(np.argmin(d2))
+        return best if d2[best] <= self._tolerance_px**2 else -1
+
     def _handle_click(self, ev: object) -> bool:
         if ev.button() != Qt.MouseButton.LeftButton or self._tool != "pick":  # type: ignore[attr-defined]
             return False
         ev.accept()  # type: ignore[attr-defined]
-        row = self._nearest(ev.scenePos())  # type: ignore[attr-defined]
-        if row >= 0:
+        extra = self._nearest_extra(ev.scenePos())  # type: ignore[attr-defined]
+        row = self._nearest(ev.scenePos()) if extra < 0 else -1  # type: ignore[attr-defined]
+        if extra >= 0:  # the marked points (samples, encoded clips) lie on top of the bank's
+            self.extraClicked.emit(extra)
+        elif row >= 0:
             self.pointClicked.emit(int(self._ids[row]))
         else:
             pos = self.view_box.mapSceneToView(ev.scenePos())  # type: ignore[attr-defined]

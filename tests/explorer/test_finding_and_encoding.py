@@ -134,3 +134,18 @@ def test_dropped_clips_are_encoded_as_windows_and_bad_files_are_named(
     assert len(c.state.shown) == min(len(starts), 12)
     assert all("long_walk.npz window" in d.label for d in c.state.shown)
     assert w.isVisible()
+
+
+def test_a_marked_sample_on_the_map_can_be_clicked_and_plays(qtbot, explorer: Opened) -> None:
+    c, w = explorer.controller, explorer.window
+    w.mode_panel.n_box.setValue(3)
+    with qtbot.waitSignal(c.shownChanged, timeout=30_000):
+        qtbot.mouseClick(w.mode_panel.sample_button, Qt.MouseButton.LeftButton)
+    extra = c.state.extra
+    k = 1
+    with qtbot.waitSignal(c.shownChanged, timeout=20_000):
+        click_map(qtbot, explorer, extra.xy[k])
+    [item] = c.state.shown
+    np.testing.assert_allclose(item.code, extra.codes[k], atol=1e-6)
+    assert item.action == int(extra.actions[k]) and "marked point 2/3" in item.label
+    assert c.state.extra is extra, "the marked points stay while one of them plays"
