@@ -73,3 +73,14 @@ def test_star_sits_on_the_chosen_k_and_the_kept_modes_are_listed(panel: ModePane
     assert "1 mode" in panel.title.text()
     axis = panel.plot.getPlotItem().getAxis("bottom")
     assert axis.autoSIPrefixScale == 1.0
+
+
+def test_an_action_without_modes_says_why_and_resets_the_plot(panel: ModePanel) -> None:
+    why = "No modes: the bank holds no code of this action (no training clip was labelled with it)."
+    panel.set_action_modes("respond", [], [], 0, [], [], why)
+    assert "0 modes" in panel.title.text() and panel.note.text() == why
+    x, _ = panel._curve.getData()
+    assert x is None or len(x) == 0
+    assert panel.weights().size == 0 and not panel._chosen_line.isVisible()
+    (x0, x1), (y0, y1) = panel.plot.getPlotItem().viewRange()
+    assert x0 <= 1 and x1 >= 12 and y0 <= 0 and y1 >= 1, "the last action's (or the loading) range is gone"
