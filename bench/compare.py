@@ -30,9 +30,9 @@ if __package__ in (None, ""):
 
 from bench._report import machine
 from bench.heldout import HELDOUT_FRACTION, SPLIT_SEED, heldout_split
-from engine.a2m_io import LoadedA2m, load_a2m
 from engine.fileio import atomic_write_text
 from engine.generate._decode import decode_tensors
+from engine.generators.a2m import LoadedA2m, load_a2m
 from engine.metrics.a2m_eval import evaluate_a2m
 from engine.metrics.classifier import Classifier, load_classifier, train_classifier
 from engine.metrics.evaluate import evaluate

@@ -5,6 +5,7 @@ from __future__ import annotations
 import hashlib
 import json
 import logging
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -19,6 +20,7 @@ from engine.errors import ConfigError, ModelFormatError
 from engine.fileio import atomic_write_bytes, atomic_write_text
 from engine.limits import read_bytes
 from engine.model.config import OdmoConfig
+from engine.model.config_base import ModelConfig
 from engine.model.odmo import OdmoModel
 from engine.motion.skeleton import Skeleton
 
@@ -78,8 +80,6 @@ def save_model(
     root_height: float,
 ) -> None:
     """Write ``model.safetensors`` and ``model.json`` into ``out_dir`` (see :func:`write_model_folder`)."""
-    if len(action_names) != config.n_actions or skeleton.n_joints != config.n_joints:
-        raise ConfigError("action names / skeleton do not match the model config")
     write_model_folder(out_dir, model, config.to_dict(), skeleton, action_names, provenance, root_height)
 
 
@@ -98,6 +98,8 @@ def write_model_folder(
     A latent bank of earlier weights is removed: it no longer describes the model. A writer killed
     between the two files leaves a folder whose weights fail the checksum, never a silently mixed one.
     """
+    if len(action_names) != config["n_actions"] or skeleton.n_joints != config["n_joints"]:
+        raise ConfigError("action names / skeleton do not match the model config")
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     tensors = {k: v.detach().to("cpu").contiguous() for k, v in model.state_dict().items()}
@@ -240,38 +242,65 @@ def _read_bank(folder: Path, meta: dict[str, Any]) -> LatentBank | None:
     return bank
 
 
-def load_model(model_dir: str | Path, device: str = "cpu", with_bank: bool = True) -> LoadedModel:
-    """Read a model folder strictly: missing, corrupt, mis-shaped or newer files raise ModelFormatError."""
+@dataclass
+class FolderContents:
+    """A model folder read and checked: its description, config, skeleton, actions and network."""
+
+    meta: dict[str, Any]
+    config: Any
+    skeleton: Skeleton
+    action_names: list[str]
+    model: torch.nn.Module
+
+
+def read_model_folder(
+    model_dir: str | Path,
+    arch: str,
+    config_type: type[ModelConfig],
+    build: Callable[[Any], torch.nn.Module],
+    device: str = "cpu",
+) -> FolderContents:
+    """Read a folder of kind ``arch`` strictly (ModelFormatError for anything missing, corrupt, mis-shaped,
+    newer or of another kind); ``build(config)`` makes the network its weights load into (eval mode)."""
     folder = Path(model_dir)
     if not folder.is_dir():
         raise ModelFormatError(f"{folder}: not a model folder")
     meta_path = folder / META_FILE
     meta = read_meta(meta_path)
+    if meta.get("arch", "odmo") != arch:
+        raise ModelFormatError(f"{meta_path}: architecture {meta.get('arch', 'odmo')!r} is not {arch!r}")
     try:
-        config = OdmoConfig.from_dict(meta["config"])
+        config = config_type.from_dict(meta["config"])
     except ModelFormatError as exc:
         raise ModelFormatError(f"{meta_path}: {exc}") from None
     try:
         sk = meta["skeleton"]
         skeleton = Skeleton(tuple(sk["names"]), np.array(sk["parents"]), np.array(sk["offsets"], dtype=float))
+        names = [str(a) for a in meta["action_names"]]
+        float(meta["root_height"])
     except (KeyError, TypeError, ValueError, ConfigError) as exc:
-        raise ModelFormatError(f"{meta_path}: bad skeleton: {exc}") from exc
-    names = [str(a) for a in meta["action_names"]]
+        raise ModelFormatError(f"{meta_path}: bad skeleton, action names or root height: {exc}") from exc
     if len(names) != config.n_actions or skeleton.n_joints != config.n_joints:
         raise ModelFormatError(f"{meta_path}: action names or skeleton disagree with the config")
-    model = OdmoModel(config)
+    model = build(config)
     model.load_state_dict(read_weights(folder / WEIGHTS_FILE, model, meta))
     model.to(resolve_device(device)).eval()
-    bank = _read_bank(folder, meta) if with_bank else None
+    return FolderContents(meta, config, skeleton, names, model)
+
+
+def load_model(model_dir: str | Path, device: str = "cpu", with_bank: bool = True) -> LoadedModel:
+    """Read an ODMO model folder strictly (see :func:`read_model_folder`), with its latent bank."""
+    found = read_model_folder(model_dir, "odmo", OdmoConfig, OdmoModel, device)
+    folder = Path(model_dir)
     return LoadedModel(
-        model=model,
-        config=config,
-        skeleton=skeleton,
-        action_names=names,
-        fps=float(config.fps),
-        window=int(config.window),
-        root_height=float(meta["root_height"]),
-        provenance=dict(meta["provenance"]),
-        bank=bank,
+        model=found.model,
+        config=found.config,
+        skeleton=found.skeleton,
+        action_names=found.action_names,
+        fps=float(found.config.fps),
+        window=int(found.config.window),
+        root_height=float(found.meta["root_height"]),
+        provenance=dict(found.meta["provenance"]),
+        bank=_read_bank(folder, found.meta) if with_bank else None,
         path=folder,
     )

@@ -1,4 +1,5 @@
-"""The Action2Motion baseline behind the Generator interface: it samples from its learned prior only."""
+"""The Action2Motion baseline: its model folder, sampling from its learned prior, and the Generator
+interface over them (it samples; it has no code to decode, encode or interpolate)."""
 
 from __future__ import annotations
 
@@ -7,13 +8,74 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+import torch
 
-from engine.a2m_io import LoadedA2m, generate_a2m, load_a2m
 from engine.errors import ConfigError
 from engine.generate import Sample
 from engine.generators.base import CodeSpace, FolderGenerator, Generator, SampleRequest, refusal, require
 from engine.latent.bank import LatentBank
+from engine.model.a2m import A2mConfig, A2mModel
+from engine.modelio import read_model_folder
 from engine.motion.motion import Motion
+from engine.motion.skeleton import Skeleton
+
+ARCH = "a2m"
+
+
+@dataclass
+class LoadedA2m:
+    """An A2M model folder in memory: the network (eval mode) and what is needed to use it."""
+
+    model: A2mModel
+    config: A2mConfig
+    skeleton: Skeleton
+    action_names: list[str]
+    fps: float
+    window: int
+    root_height: float
+    provenance: dict
+    path: Path
+
+
+def load_a2m(model_dir: str | Path, device: str = "cpu") -> LoadedA2m:
+    """Read an A2M folder strictly: bad, newer or non-A2M files raise ModelFormatError."""
+    found = read_model_folder(model_dir, ARCH, A2mConfig, A2mModel, device)
+    return LoadedA2m(
+        model=found.model,
+        config=found.config,
+        skeleton=found.skeleton,
+        action_names=found.action_names,
+        fps=float(found.config.fps),
+        window=int(found.config.window),
+        root_height=float(found.meta["root_height"]),
+        provenance=dict(found.meta["provenance"]),
+        path=Path(model_dir),
+    )
+
+
+def generate_a2m(
+    loaded: LoadedA2m, action: int | str, n: int, generator: torch.Generator | int
+) -> np.ndarray:
+    """(n, T, J, 3) float32 motions of ``action`` (index or name) sampled from the learned prior.
+
+    ``generator`` is a torch.Generator on the model's device or a seed; the same seed gives the same motions.
+    """
+    if n < 1:
+        raise ConfigError(f"n must be at least 1, got {n}")
+    if isinstance(action, str):
+        if action not in loaded.action_names:
+            raise ConfigError(f"unknown action {action!r}; the model knows {', '.join(loaded.action_names)}")
+        action = loaded.action_names.index(action)
+    if not 0 <= int(action) < loaded.config.n_actions:
+        raise ConfigError(f"action index {action} out of range 0..{loaded.config.n_actions - 1}")
+    device = next(loaded.model.parameters()).device
+    if isinstance(generator, int):
+        generator = torch.Generator(device).manual_seed(generator)
+    with torch.inference_mode():
+        joints = loaded.model.sample(
+            torch.full((n,), int(action), dtype=torch.long, device=device), generator
+        )
+    return joints.cpu().numpy().astype(np.float32)
 
 
 @dataclass(eq=False)

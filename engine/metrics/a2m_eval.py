@@ -15,8 +15,8 @@ from typing import Any
 import numpy as np
 import torch
 
-from engine.a2m_io import LoadedA2m, generate_a2m
 from engine.errors import ConfigError
+from engine.generators.a2m import LoadedA2m, generate_a2m
 from engine.metrics.classifier import Classifier
 from engine.metrics.evaluate import check_compatible, evaluate_sets, report
 from engine.metrics.features import canonical_windows, root_heights

@@ -14,10 +14,9 @@ import numpy as np
 import torch
 
 from engine import __version__
-from engine.a2m_io import save_a2m
 from engine.errors import CancelledError, ConfigError, ModelFormatError
 from engine.model.a2m import A2M_LOSS_TERMS, A2mConfig, A2mModel, a2m_losses
-from engine.modelio import resolve_device
+from engine.modelio import resolve_device, write_model_folder
 from engine.motion.motion import Motion
 from engine.train.checkpoint import checkpoint_path, load_checkpoint, save_checkpoint
 from engine.train.loop import LOG_FILE, TrainProgress, TrainResult, write_log
@@ -184,7 +183,9 @@ def train_a2m(
     }
     root = prepared.skeleton.root
     root_height = float(np.median(np.concatenate([j[:, root, 1] for j in prepared.joints])))
-    save_a2m(out, model, prepared.skeleton, prepared.action_names, provenance, root_height)
+    write_model_folder(
+        out, model, config.to_dict(), prepared.skeleton, prepared.action_names, provenance, root_height, "a2m"
+    )
     return TrainResult(
         model_dir=out,
         epochs=config.epochs,

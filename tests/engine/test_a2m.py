@@ -11,14 +11,14 @@ import pytest
 import torch
 
 from bench.compare import ROWS, results_markdown
-from engine.a2m_io import generate_a2m, load_a2m, save_a2m
 from engine.errors import ConfigError, ModelFormatError
+from engine.generators.a2m import generate_a2m, load_a2m
 from engine.metrics.a2m_eval import NOT_APPLICABLE, evaluate_a2m
 from engine.metrics.classifier import Classifier, train_classifier
 from engine.metrics.evaluate import evaluate
 from engine.metrics.physics import physics_metrics
 from engine.model.a2m import A2mModel
-from engine.modelio import load_model
+from engine.modelio import load_model, write_model_folder
 from engine.motion.motion import Motion
 from engine.train.a2m_loop import train_a2m
 from tests.fixtures.procedural import PROCEDURAL_ACTIONS
@@ -87,7 +87,16 @@ def test_generation_is_deterministic_per_seed(a2m_dir: Path, torch_single_thread
 
 def test_save_load_generate_identical(a2m_dir: Path, tmp_path: Path, torch_single_thread: None) -> None:
     loaded = load_a2m(a2m_dir)
-    save_a2m(tmp_path, loaded.model, loaded.skeleton, loaded.action_names, loaded.provenance, 0.9)
+    write_model_folder(
+        tmp_path,
+        loaded.model,
+        loaded.config.to_dict(),
+        loaded.skeleton,
+        loaded.action_names,
+        loaded.provenance,
+        0.9,
+        "a2m",
+    )
     again = load_a2m(tmp_path)
     assert again.config == loaded.config and again.action_names == loaded.action_names
     np.testing.assert_array_equal(generate_a2m(loaded, 2, 4, 11), generate_a2m(again, 2, 4, 11))

@@ -186,7 +186,7 @@ def test_train_rejects_unknown_settings(odmo, data_dir, tmp_path, capsys):
 
 @pytest.mark.slow
 def test_train_a2m_baseline_writes_a_loadable_model(odmo, data_dir, tmp_path):
-    from engine.a2m_io import load_a2m
+    from engine.generators.a2m import load_a2m
 
     settings = [
         x for s in ("hidden=8", "latent_dim=4", "batch_size=8", "epoch_size=16") for x in ("--set", s)
