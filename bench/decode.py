@@ -150,7 +150,7 @@ def _kinematics(skeleton: Skeleton, config: OdmoConfig, rng: np.random.Generator
     """Time the bone projection, the foot clean-up and, for comparison, torch FK of 6D local rotations."""
     rows = []
     projection = BoneProjection(skeleton)
-    offsets = torch.as_tensor(skeleton.offsets, dtype=torch.float32)
+    offsets = torch.tensor(np.array(skeleton.offsets), dtype=torch.float32)
     feet = list(config.foot_joints)
     for batch in (1, 1024):
         joints = torch.as_tensor(

@@ -2,9 +2,9 @@
 
     python bench/train_default.py --data "$(../shared/data/unpack)" [--resume]
 
-The defaults are the bundled model's settings (30 epochs, teacher forcing decaying over 30 to 0.3 with
-free-running scheduled samples, no same-action pull, seed 0, one torch thread: training results differ
-between thread counts). The evaluation classifier in --work/classifier is reused when present.
+The defaults are the bundled model's settings (30 epochs, teacher forcing decaying from 1 towards 0.3
+over 100 epochs, no same-action pull, seed 0, one torch thread: training results differ between thread
+counts). The evaluation classifier in --work/classifier is reused when present.
 
 Holds out 15 % of the clips (stratified by action and style, seed 2022; see bench/heldout.py), trains
 ODMO on the rest, trains the evaluation classifier on the same training clips, evaluates on the held-out
@@ -51,7 +51,7 @@ def parse_args() -> argparse.Namespace:
     p.add_argument("--work", type=Path, default=Path("runs/bandai2-odmo"), help="checkpoints and logs")
     p.add_argument("--epochs", type=int, default=30)
     p.add_argument(
-        "--tf-decay-epochs", type=int, default=30, help="epochs until teacher forcing reaches its floor"
+        "--tf-decay-epochs", type=int, default=100, help="epochs until teacher forcing reaches its floor"
     )
     p.add_argument(
         "--contrastive-pull", type=float, default=0.0, help="weight of the same-action pull (1: the paper's)"

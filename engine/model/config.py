@@ -44,7 +44,8 @@ class OdmoConfig(ModelConfig):
     (``w_contact``: cross-entropy, plus the speed of truly planted feet) and the decode-time clean-up
     that pins planted feet. ``w_velocity`` weights an L2 loss on frame-to-frame joint velocities.
     ``scheduled_sampling`` says where the non-teacher-forced previous poses come from: "one_step" (a
-    teacher-forced pass) or "free_run" (a free-running decode, as the reference's per-step loop does).
+    teacher-forced pass, the default) or "free_run" (a free-running decode, as the reference's per-step
+    loop does; measured worse on the bundled recipe, see the README).
     """
 
     n_actions: int
@@ -84,7 +85,7 @@ class OdmoConfig(ModelConfig):
     w_velocity: float = 0.1
     foot_joints: tuple[int, ...] = ()
     foot_heights: tuple[float, ...] = ()
-    scheduled_sampling: str = "free_run"
+    scheduled_sampling: str = "one_step"
     arch: str = "odmo"
 
     POSITIVE = ("n_actions", "n_joints", "window", "fps", "latent_dim", "enc_hidden", "enc_fc", "traj_hidden")

@@ -373,7 +373,7 @@ def test_the_papers_model_is_one_setting_away() -> None:
     assert not paper.motion_gen.free_running_samples and paper.config.w_velocity == 0.0
     ours = OdmoModel(OdmoConfig(n_actions=3, n_joints=11, foot_joints=(8, 10), foot_heights=(0.05, 0.05)))
     ours.attach_skeleton(procedural_skeleton())
-    assert ours.projection is not None and ours.contact is not None and ours.motion_gen.free_running_samples
+    assert ours.projection is not None and ours.contact is not None
     # a model.json written before the switches existed loads as the paper's decoder
     old = {k: v for k, v in ours.config.to_dict().items() if k not in PAPER or k == "contrastive_pull"}
     assert OdmoConfig.from_dict(old).to_dict() | {"foot_joints": (8, 10), "foot_heights": (0.05, 0.05)} == (
