@@ -345,10 +345,18 @@ class SkeletonViewport(QWidget):
     # ----- labels -------------------------------------------------------------------------------
     def set_labels(self, labels: Sequence[str] | None) -> None:
         """Draw ``labels`` (one per skeleton) above the skeletons' heads; None or [] removes them."""
+        labels = list(labels or [])
+        if labels and len(labels) == len(self._label_actors):  # same count: retext in place (drags)
+            for actor, text in zip(self._label_actors, labels, strict=True):
+                actor.SetInput(text)
+            self._labels = labels
+            self._place_labels()
+            self._schedule_render()
+            return
         for actor in self._label_actors:
             self.plotter.remove_actor(actor, render=False)
         self._label_actors = []
-        self._labels = list(labels or [])
+        self._labels = labels
         if self._labels and len(self._labels) != self._n:
             raise ValueError(f"expected {self._n} labels, got {len(self._labels)}")
         for text in self._labels:

@@ -153,3 +153,32 @@ def test_updates_in_one_event_pass_share_one_render(qtbot, viewport: SkeletonVie
     assert renders == []
     qtbot.wait(50)
     assert len(renders) == 1
+
+
+def test_labels_follow_the_heads_and_can_be_retexted(viewport: SkeletonViewport) -> None:
+    viewport.set_labels(["walk 1/1"])
+    [pos] = viewport.label_positions()
+    assert pos[1] > POSE[:, 1].max() and viewport.labels() == ["walk 1/1"]
+    viewport.set_poses((POSE + np.array([2.0, 0.0, 0.0], dtype=np.float32))[None])
+    assert viewport.label_positions()[0, 0] == pytest.approx(pos[0] + 2.0)
+    viewport.set_labels(["run 1/1"])
+    assert viewport.labels() == ["run 1/1"] and len(viewport.label_positions()) == 1
+    with pytest.raises(ValueError, match="labels"):
+        viewport.set_labels(["a", "b"])
+    viewport.set_labels(None)
+    assert viewport.labels() == [] and len(viewport.label_positions()) == 0
+
+
+def test_framing_keeps_a_long_walk_in_view_at_any_aspect(show, viewport: SkeletonViewport) -> None:
+    walk = np.stack([POSE + np.array([0.0, 0.0, 0.15 * t], dtype=np.float32) for t in range(60)])[None]
+    for size in ((480, 400), (260, 600), (900, 240)):
+        viewport.resize(*size)
+        QApplication.processEvents()
+        viewport.frame_motion(walk)
+        assert viewport.in_view(walk.reshape(-1, 3))
+        ndc = viewport.project(walk.reshape(-1, 3))
+        assert np.abs(ndc).max() > 0.6, "framed tightly, not from far away"
+    viewport.set_poses(walk[:, 0])
+    assert not viewport.keep_in_view(walk), "already in view: the camera stays"
+    far = walk + np.array([6.0, 0.0, 0.0], dtype=np.float32)
+    assert viewport.keep_in_view(far) and viewport.in_view(far.reshape(-1, 3))
