@@ -11,7 +11,7 @@ from PySide6.QtCore import QEvent, QObject
 from PySide6.QtGui import QCloseEvent, QResizeEvent
 from PySide6.QtWidgets import QVBoxLayout, QWidget
 from pyvistaqt import QtInteractor
-from vtkmodules.vtkRenderingCore import vtkBillboardTextActor3D
+from vtkmodules.vtkRenderingCore import vtkTextActor
 
 from widgets._colors import ACCENT, BACKGROUND, GENERATED, GHOST, GRID, palette_rgb
 
@@ -95,6 +95,7 @@ class SkeletonViewport(QWidget):
         self._labels: list[str] = []
         self._label_actors: list[object] = []
         self._closed = False
+        self.plotter.renderer.AddObserver("StartEvent", self._place_labels)
         self.reset_camera()
 
     # ----- skeletons ----------------------------------------------------------------------------
@@ -129,7 +130,7 @@ class SkeletonViewport(QWidget):
         for actor in self._actors:
             actor.SetVisibility(False)  # no stray dot at the origin before the first pose
         for actor in self._label_actors:
-            self.plotter.remove_actor(actor, render=False)
+            self.plotter.renderer.RemoveViewProp(actor)
         self._label_actors, self._labels = [], []
         self._follow_anchor = None
         self._apply_layout()
@@ -344,29 +345,27 @@ class SkeletonViewport(QWidget):
 
     # ----- labels -------------------------------------------------------------------------------
     def set_labels(self, labels: Sequence[str] | None) -> None:
-        """Draw ``labels`` (one per skeleton) above the skeletons' heads; None or [] removes them."""
+        """Draw ``labels`` (one per skeleton) above the skeletons' heads; None or [] removes them.
+
+        They are 2-D text actors placed, before every render, where the point ``LABEL_LIFT`` above each
+        head projects (3-D billboard text costs ~4 ms a label per frame in software GL; these cost nothing).
+        """
         labels = list(labels or [])
-        if labels and len(labels) == len(self._label_actors):  # same count: retext in place (drags)
-            for actor, text in zip(self._label_actors, labels, strict=True):
-                actor.SetInput(text)
-            self._labels = labels
-            self._place_labels()
-            self._schedule_render()
-            return
-        for actor in self._label_actors:
-            self.plotter.remove_actor(actor, render=False)
-        self._label_actors = []
-        self._labels = labels
-        if self._labels and len(self._labels) != self._n:
-            raise ValueError(f"expected {self._n} labels, got {len(self._labels)}")
-        for text in self._labels:
-            actor = vtkBillboardTextActor3D()
-            actor.SetInput(text)
-            actor.GetTextProperty().SetFontSize(14)
-            actor.GetTextProperty().SetJustificationToCentered()
-            actor.GetTextProperty().SetColor(0.9, 0.9, 0.9)
-            self.plotter.renderer.AddActor(actor)
+        if labels and len(labels) != self._n:
+            raise ValueError(f"expected {self._n} labels, got {len(labels)}")
+        while len(self._label_actors) > len(labels):
+            self.plotter.renderer.RemoveViewProp(self._label_actors.pop())
+        while len(self._label_actors) < len(labels):
+            actor = vtkTextActor()
+            prop = actor.GetTextProperty()
+            prop.SetFontSize(14)
+            prop.SetJustificationToCentered()
+            prop.SetColor(0.9, 0.9, 0.9)
+            self.plotter.renderer.AddViewProp(actor)
             self._label_actors.append(actor)
+        for actor, text in zip(self._label_actors, labels, strict=True):
+            actor.SetInput(text)
+        self._labels = labels
         self._place_labels()
         self._schedule_render()
 
@@ -375,16 +374,24 @@ class SkeletonViewport(QWidget):
         return list(self._labels)
 
     def label_positions(self) -> np.ndarray:
-        """(n, 3) world positions of the labels (empty without labels)."""
-        return np.array([a.GetPosition() for a in self._label_actors]).reshape(-1, 3)
+        """(n, 3) world points the labels are drawn at (empty without labels)."""
+        if not self._label_actors:
+            return np.zeros((0, 3))
+        points = self.skeleton_points()
+        tops = points[np.arange(len(points)), np.argmax(points[:, :, 1], axis=1)].astype(np.float64)
+        return tops + np.array([0.0, LABEL_LIFT, 0.0])
 
-    def _place_labels(self) -> None:
+    def _place_labels(self, *_args: object) -> None:
+        """Put each label where its world point projects (called before every render)."""
         if not self._label_actors:
             return
-        points = self.skeleton_points()
-        for actor, pts in zip(self._label_actors, points, strict=True):
-            top = pts[np.argmax(pts[:, 1])]
-            actor.SetPosition(float(top[0]), float(top[1]) + LABEL_LIFT, float(top[2]))
+        width, height = self.plotter.renderer.GetSize()
+        ndc = self.project(self.label_positions())
+        for actor, (x, y) in zip(self._label_actors, ndc, strict=True):
+            visible = bool(np.isfinite(x) and np.isfinite(y))
+            actor.SetVisibility(visible)
+            if visible:
+                actor.SetDisplayPosition(int((x + 1) / 2 * width), int((y + 1) / 2 * height))
 
     @property
     def follow(self) -> bool:

@@ -163,6 +163,14 @@ def test_labels_follow_the_heads_and_can_be_retexted(viewport: SkeletonViewport)
     assert viewport.label_positions()[0, 0] == pytest.approx(pos[0] + 2.0)
     viewport.set_labels(["run 1/1"])
     assert viewport.labels() == ["run 1/1"] and len(viewport.label_positions()) == 1
+    viewport.render_now()  # the 2-D label sits just above where the head is drawn
+    renderer = viewport.plotter.renderer
+    head = viewport.skeleton_points()[0, np.argmax(POSE[:, 1])]
+    renderer.SetWorldPoint(*head.astype(float), 1.0)
+    renderer.WorldToDisplay()
+    hx, hy, _ = renderer.GetDisplayPoint()
+    x, y = viewport._label_actors[0].GetPosition()
+    assert abs(x - hx) < 20 and hy < y < hy + 120
     with pytest.raises(ValueError, match="labels"):
         viewport.set_labels(["a", "b"])
     viewport.set_labels(None)
