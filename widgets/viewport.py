@@ -140,6 +140,8 @@ class SkeletonViewport(QWidget):
         rgb = np.asarray(rgb, dtype=np.uint8).reshape(-1, 3)
         if self._mesh is None or len(rgb) != self._n:
             raise ValueError(f"need {self._n} colours (call set_skeletons first), got {len(rgb)}")
+        if np.array_equal(rgb, self.colors()):
+            return  # unchanged (every live decode of a drag sets them): no new colour buffer
         self._mesh.point_data["rgb"] = np.repeat(rgb, len(self._parents), axis=0)
         self._schedule_render()
 
@@ -351,6 +353,8 @@ class SkeletonViewport(QWidget):
         head projects (3-D billboard text costs ~4 ms a label per frame in software GL; these cost nothing).
         """
         labels = list(labels or [])
+        if labels == self._labels and len(labels) == len(self._label_actors):
+            return
         if labels and len(labels) != self._n:
             raise ValueError(f"expected {self._n} labels, got {len(labels)}")
         while len(self._label_actors) > len(labels):
