@@ -106,6 +106,9 @@ class SkeletonViewport(QWidget):
             raise ValueError("parents must be a tree: one root (-1) and indices below J")
         if n < 1:
             raise ValueError(f"need at least one skeleton, got {n}")
+        for actor in self._label_actors:  # first: a render during the rebuild must not see old labels
+            self.plotter.renderer.RemoveViewProp(actor)
+        self._label_actors, self._labels = [], []
         for actor in self._actors:
             self.plotter.remove_actor(actor, render=False)
         self._parents, self._n = parents, int(n)
@@ -129,9 +132,6 @@ class SkeletonViewport(QWidget):
         ]
         for actor in self._actors:
             actor.SetVisibility(False)  # no stray dot at the origin before the first pose
-        for actor in self._label_actors:
-            self.plotter.renderer.RemoveViewProp(actor)
-        self._label_actors, self._labels = [], []
         self._follow_anchor = None
         self._apply_layout()
 
@@ -387,7 +387,7 @@ class SkeletonViewport(QWidget):
 
     def _place_labels(self, *_args: object) -> None:
         """Put each label where its world point projects (called before every render)."""
-        if not self._label_actors:
+        if not self._label_actors or len(self._label_actors) != len(self._poses):
             return
         width, height = self.plotter.renderer.GetSize()
         ndc = self.project(self.label_positions())
