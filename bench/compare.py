@@ -314,6 +314,33 @@ def a2m_decoder(loaded: LoadedA2m) -> Callable[[], None]:
     return decode
 
 
+_PATH_OPTIONS = ("--data", "--previous", "--classifier", "--runs", "--results")
+
+
+def _shown_argv(argv: Sequence[str]) -> list[str]:
+    """The command line with path values shown by ``shown`` (no machine paths) and spaces quoted."""
+    out = []
+    for i, token in enumerate(argv):
+        if i > 0 and argv[i - 1] in _PATH_OPTIONS:
+            token = shown(Path(token))
+        out.append(f"'{token}'" if " " in token else token)
+    return out
+
+
+def _fresh_eval(
+    saved: Path, folder: Path, classifier: Classifier, evaluation: dict[str, Any], strategy: str
+) -> bool:
+    """Whether ``saved`` evaluated the model now in ``folder`` (written after its weights) with this
+    classifier (same held-out accuracy), evaluation settings and strategy."""
+    weights = Path(folder) / "model.safetensors"
+    if not saved.is_file() or not weights.is_file() or saved.stat().st_mtime < weights.stat().st_mtime:
+        return False
+    meta = json.loads(saved.read_text()).get("meta", {})
+    same = all(meta.get(k) == v for k, v in evaluation.items()) and meta.get("strategy") == strategy
+    same_classifier = meta.get("classifier_test_accuracy") == classifier.test_accuracy
+    return same and same_classifier and meta.get("model") == str(folder)
+
+
 def _check_same_real(first: dict[str, Any], other: dict[str, Any], row: str) -> None:
     """RuntimeError unless ``row`` was evaluated against the same real sets (NaN-safe comparison)."""
     if json.dumps(first, sort_keys=True) != json.dumps(other, sort_keys=True):
@@ -398,8 +425,13 @@ def main(argv: Sequence[str] | None = None) -> int:
         if key not in folders or row not in wanted:
             continue
         loaded = load_model(folders[key], device="cpu")
-        report = evaluate(loaded, test_clips, classifier, strategy=strategy, **evaluation)
-        atomic_write_text(args.runs / f"eval_{row}.json", json.dumps(report, indent=2))
+        saved = args.runs / f"eval_{row}.json"
+        if args.reuse and _fresh_eval(saved, folders[key], classifier, evaluation, strategy):
+            report = json.loads(saved.read_text())
+            notes[f"{row} evaluation"] = f"reused {shown(saved)}"
+        else:
+            report = evaluate(loaded, test_clips, classifier, strategy=strategy, **evaluation)
+            atomic_write_text(saved, json.dumps(report, indent=2))
         real = real or report["real"]
         _check_same_real(real, report["real"], row)
         entries.append({"row": row, "generated": report["generated"], "per_action": report["per_action"]})
@@ -460,7 +492,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         "Date": dt.datetime.now(dt.UTC).strftime("%Y-%m-%d %H:%M UTC"),
         "Wall time": f"{(time.time() - started) / 60:.1f} min",
         "Command": "`"
-        + " ".join(["python", "bench/compare.py", *(argv if argv is not None else sys.argv[1:])])
+        + " ".join(["python", "bench/compare.py", *_shown_argv(argv if argv is not None else sys.argv[1:])])
         + "`",
         "Reproduce": f"`python bench/compare.py --data DATA --epochs {args.epochs} --repeats {args.repeats} "
         f"--n-per-action {args.n_per_action} --classifier-epochs {args.classifier_epochs} "
