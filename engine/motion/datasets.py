@@ -140,9 +140,10 @@ def load_folder(
         try:
             digest, motion = _load_clip(entry, store, drop, up_axis)
         except OdmoError as exc:
+            named = str(exc) if str(exc).startswith(str(entry.path)) else f"{entry.path}: {exc}"
             if on_error == "raise":
-                raise DataError(f"{entry.path}: {exc}") from None
-            log.warning("skipping %s: %s", entry.path, exc)
+                raise DataError(named) from None
+            log.warning("skipping %s", named)
             skipped.append(str(entry.path))
             continue
         source = entry.path.relative_to(root).as_posix()

@@ -178,8 +178,9 @@ def test_unlabelled_or_unreadable_folders(tmp_path: Path) -> None:
         load_folder(tmp_path)
     (tmp_path / "walk_2.npz").write_bytes(b"garbage")
     write_npz(tmp_path / "walk_1.npz", tiny_clip(rng))
-    with pytest.raises(DataError, match=r"walk_2\.npz"):
+    with pytest.raises(DataError, match=r"walk_2\.npz") as info:
         load_folder(tmp_path, pattern=r"(?P<action>walk)")
+    assert str(info.value).count("walk_2.npz") == 1, "the file is named once"
     data = load_folder(tmp_path, pattern=r"(?P<action>walk)", on_error="skip")
     assert len(data) == 1 and data.skipped == [str(tmp_path / "walk_2.npz")]
 
