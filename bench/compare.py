@@ -428,7 +428,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         saved = args.runs / f"eval_{row}.json"
         if args.reuse and _fresh_eval(saved, folders[key], classifier, evaluation, strategy):
             report = json.loads(saved.read_text())
-            notes[f"{row} evaluation"] = f"reused {shown(saved)}"
+            notes[key] = notes.get(key, "") + f" (evaluation reused from {shown(saved)})"
         else:
             report = evaluate(loaded, test_clips, classifier, strategy=strategy, **evaluation)
             atomic_write_text(saved, json.dumps(report, indent=2))

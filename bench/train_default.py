@@ -57,6 +57,9 @@ def parse_args() -> argparse.Namespace:
         "--contrastive-pull", type=float, default=0.0, help="weight of the same-action pull (1: the paper's)"
     )
     p.add_argument("--classifier-epochs", type=int, default=20)
+    p.add_argument(
+        "--classifier-lr-floor", type=float, default=1.0, help="classifier lr cosine floor (1: constant)"
+    )
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--repeats", type=int, default=10)
     p.add_argument("--n-per-action", type=int, default=50)
@@ -130,6 +133,7 @@ def main() -> int:
             window=config.window,
             fps=config.fps,
             epochs=args.classifier_epochs,
+            lr_floor=args.classifier_lr_floor,
             seed=args.seed,
         )
     classifier = load_classifier(clf_dir)

@@ -53,6 +53,7 @@ class ClassifierConfig:
     batch_size: int = 64
     epochs: int = 60
     stride: int = 10
+    lr_floor: float = 0.05  # the learning rate falls along a cosine to lr · lr_floor (1: constant)
 
     def __post_init__(self) -> None:
         self.fps = float(self.fps)
@@ -67,6 +68,7 @@ class ClassifierConfig:
     @classmethod
     def from_dict(cls, d: dict[str, Any]) -> ClassifierConfig:
         """Config from a dict; ModelFormatError on unknown or missing keys."""
+        d = {"lr_floor": 1.0} | d  # classifiers saved before the schedule existed trained at a constant rate
         known = {f.name for f in dataclasses.fields(cls)}
         unknown = sorted(set(d) - known)
         if unknown:
@@ -200,14 +202,15 @@ def train_classifier(
     epochs: int = 60,
     batch_size: int = 64,
     stride: int = 10,
+    lr_floor: float = 0.05,
     seed: int = 0,
     val_fraction: float = 0.2,
     progress: Progress | None = None,
     cancel: Callable[[], bool] | None = None,
 ) -> Classifier:
     """Train the classifier on every window (starts ``stride`` frames apart) of the training clips, each
-    epoch in a new order, the learning rate falling along a cosine to 5 %; measure it on every window of
-    the held-out clips; save it to ``out_dir``."""
+    epoch in a new order, the learning rate falling along a cosine to ``lr_floor`` (5 %) of it; measure it
+    on every window of the held-out clips; save it to ``out_dir``."""
     if not clips:
         raise DataError("no clips to train the classifier on")
     if not 0.0 <= val_fraction < 1.0:
@@ -221,6 +224,7 @@ def train_classifier(
         batch_size=batch_size,
         epochs=epochs,
         stride=stride,
+        lr_floor=lr_floor,
     )
     prepared = prepare_clips(clips, action_names, fps, window)
     train_idx, held_idx = split_clips(prepared.actions, val_fraction, seed)
@@ -231,7 +235,7 @@ def train_classifier(
     optimiser = torch.optim.Adam(net.parameters(), lr=config.lr)
     for epoch in range(epochs):
         for group in optimiser.param_groups:
-            group["lr"] = cosine_lr(config.lr, epoch, epochs)
+            group["lr"] = cosine_lr(config.lr, epoch, epochs, config.lr_floor)
         net.train()
         order = rows[rng.permutation(len(rows))]
         total = 0.0
