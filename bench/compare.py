@@ -463,7 +463,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         + (
             "; the bundled default row keeps its own budget (see Models)" if "odmo_default" in folders else ""
         ),
-        "Models": "; ".join(f"{ROWS[k]}: {v}" for k, v in notes.items()),
+        "Models": "; ".join(f"{(ROWS | labels)[k]}: {v}" for k, v in notes.items()),
         "Seeds": f"training seed {args.seed}; evaluation seed {args.seed} "
         f"({args.repeats} repeats × {args.n_per_action} motions per action, repeat r uses rng [seed, r])",
         "Classifier": f"`{shown(classifier.path)}`: accuracy {classifier.test_accuracy:.3f} on every window "
