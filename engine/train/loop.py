@@ -26,6 +26,7 @@ from engine.latent.bank import LatentBank, build_bank
 from engine.model.config import OdmoConfig
 from engine.model.losses import LOSS_TERMS, odmo_losses
 from engine.model.odmo import OdmoModel
+from engine.model.precision import bfloat16_autocast, native_bfloat16
 from engine.modelio import resolve_device, save_bank, save_model
 from engine.motion.contact import contact_labels, foot_joints, resting_heights
 from engine.motion.motion import Motion
@@ -239,6 +240,10 @@ def train(
     """
     out = Path(out_dir)
     dev = resolve_device(device)
+    if config.train_precision == "bfloat16" and not native_bfloat16(dev.type):
+        log.warning(
+            "this %s has no bfloat16 instructions: bfloat16 training runs, but slower than float32", dev
+        )
     prepared = prepare_clips(clips, action_names, config.fps, config.window)
     _check_sizes(config, prepared)
     fingerprint = prepared.fingerprint()
@@ -290,7 +295,7 @@ def train(
             anchors, slot = sampler.anchors(n_pairs, rng)
             partners, same = sampler.partners(slot, rng)
             batch = crop_windows(prepared, np.concatenate([anchors, partners]), rng)
-            with torch.autocast(dev.type, torch.bfloat16, enabled=config.train_precision == "bfloat16"):
+            with bfloat16_autocast(dev.type, enabled=config.train_precision == "bfloat16"):
                 terms = _forward(
                     model,
                     config,
