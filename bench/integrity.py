@@ -27,6 +27,28 @@ DEFAULT_DATA = ROOT.parent / "shared" / "data" / "bandai-namco-2"
 #: The last commit before the integrity work (issue 13): what "before" means in the table.
 DEFAULT_REFERENCE = "69b2202"
 
+#: Times the reference's datasets.py and this one alternately in one process (both on this tree's Motion,
+#: formats and cache folder), which isolates the cache and reading changes from the rest of the tree.
+_SAME_PROCESS = """
+import importlib.util, json, sys, time
+sys.path.insert(0, sys.argv[1])
+spec = importlib.util.spec_from_file_location("reference_datasets", sys.argv[3])
+reference = importlib.util.module_from_spec(spec)
+sys.modules["reference_datasets"] = reference
+spec.loader.exec_module(reference)
+from engine.motion import datasets
+data, rounds = sys.argv[2], int(sys.argv[4])
+reference.load_folder(data)
+datasets.load_folder(data)
+times = {"reference": [], "this": []}
+for _ in range(rounds):
+    for name, module in (("reference", reference), ("this", datasets)):
+        start = time.perf_counter()
+        module.load_folder(data)
+        times[name].append(time.perf_counter() - start)
+print(json.dumps(times))
+"""
+
 _WORKER = """
 import json, statistics, sys, time
 sys.path.insert(0, sys.argv[1])
@@ -84,6 +106,10 @@ def main() -> int:
             for _ in range(args.rounds):
                 runs["reference"].append(_run(reference, args.data, args.files))
                 runs["this"].append(_run(ROOT, args.data, args.files))
+            command = [sys.executable, "-c", _SAME_PROCESS, str(ROOT), str(args.data)]
+            command += [str(reference / "engine" / "motion" / "datasets.py"), str(args.rounds)]
+            out = subprocess.run(command, capture_output=True, text=True, check=True)
+            same_process = json.loads(out.stdout.strip().splitlines()[-1])
         finally:
             remove = ["git", "-C", str(ROOT), "worktree", "remove", "--force", str(reference)]
             subprocess.run(remove, check=True)
@@ -111,6 +137,19 @@ def main() -> int:
                 "target": f"ratio {after / before:.3f} (≤ 1.10); {spread}",
             }
         )
+    before, after = min(same_process["reference"]), min(same_process["this"])
+    measure = f"load folder, {n} files, cached, datasets.py alone in one process"
+    rows.append({"measure": f"{measure}: reference {args.reference}", "value": before, "unit": "s"})
+    spread = f"median {statistics.median(same_process['reference']):.4g} → "
+    spread += f"{statistics.median(same_process['this']):.4g}"
+    rows.append(
+        {
+            "measure": f"{measure}: this checkout",
+            "value": after,
+            "unit": "s",
+            "target": f"ratio {after / before:.3f} (≤ 1.10); {spread}",
+        }
+    )
     for row in rows:
         print(f"{row['measure']}: {row['value']:.4g} {row['unit']} {row.get('target', '')}")
     if not args.no_record:
