@@ -251,6 +251,21 @@ class FolderContents:
     skeleton: Skeleton
     action_names: list[str]
     model: torch.nn.Module
+    path: Path
+
+    def loaded_fields(self) -> dict[str, Any]:
+        """The fields every kind's loaded-model record has, by name."""
+        return {
+            "model": self.model,
+            "config": self.config,
+            "skeleton": self.skeleton,
+            "action_names": self.action_names,
+            "fps": float(self.config.fps),
+            "window": int(self.config.window),
+            "root_height": float(self.meta["root_height"]),
+            "provenance": dict(self.meta["provenance"]),
+            "path": self.path,
+        }
 
 
 def read_model_folder(
@@ -285,22 +300,11 @@ def read_model_folder(
     model = build(config)
     model.load_state_dict(read_weights(folder / WEIGHTS_FILE, model, meta))
     model.to(resolve_device(device)).eval()
-    return FolderContents(meta, config, skeleton, names, model)
+    return FolderContents(meta, config, skeleton, names, model, folder)
 
 
 def load_model(model_dir: str | Path, device: str = "cpu", with_bank: bool = True) -> LoadedModel:
     """Read an ODMO model folder strictly (see :func:`read_model_folder`), with its latent bank."""
     found = read_model_folder(model_dir, "odmo", OdmoConfig, OdmoModel, device)
-    folder = Path(model_dir)
-    return LoadedModel(
-        model=found.model,
-        config=found.config,
-        skeleton=found.skeleton,
-        action_names=found.action_names,
-        fps=float(found.config.fps),
-        window=int(found.config.window),
-        root_height=float(found.meta["root_height"]),
-        provenance=dict(found.meta["provenance"]),
-        bank=_read_bank(folder, found.meta) if with_bank else None,
-        path=folder,
-    )
+    bank = _read_bank(found.path, found.meta) if with_bank else None
+    return LoadedModel(**found.loaded_fields(), bank=bank)

@@ -39,18 +39,7 @@ class LoadedA2m:
 
 def load_a2m(model_dir: str | Path, device: str = "cpu") -> LoadedA2m:
     """Read an A2M folder strictly: bad, newer or non-A2M files raise ModelFormatError."""
-    found = read_model_folder(model_dir, ARCH, A2mConfig, A2mModel, device)
-    return LoadedA2m(
-        model=found.model,
-        config=found.config,
-        skeleton=found.skeleton,
-        action_names=found.action_names,
-        fps=float(found.config.fps),
-        window=int(found.config.window),
-        root_height=float(found.meta["root_height"]),
-        provenance=dict(found.meta["provenance"]),
-        path=Path(model_dir),
-    )
+    return LoadedA2m(**read_model_folder(model_dir, ARCH, A2mConfig, A2mModel, device).loaded_fields())
 
 
 def generate_a2m(
