@@ -21,6 +21,7 @@ from PySide6.QtWidgets import QWidget
 
 from engine.errors import ConfigError
 from engine.fileio import atomic_write_bytes
+from engine.motion.bvh import provenance_path
 from engine.motion.motion import Motion
 from explorer.state import Decoded
 
@@ -66,8 +67,9 @@ def export_motions(items: Sequence[Decoded], path: str | Path, model_path: str) 
             written.append(target)
     except BaseException:
         for done in written:
-            with contextlib.suppress(OSError):
-                done.unlink()
+            for file in (done, provenance_path(done)):
+                with contextlib.suppress(OSError):
+                    file.unlink()
         raise
     log.info("exported %d motion(s) to %s", len(written), path)
     return written
