@@ -60,6 +60,19 @@ def _two_modes(explorer: Explorer, action: int) -> tuple[int, int]:
     return int(near[0]), int(near[1])
 
 
+def _drag(explorer: Explorer, start: int, target: int, steps: int, settle: float) -> None:
+    """Drag on the map from code ``start`` to code ``target`` in ``steps`` moves, then release on it."""
+    c = explorer.controller
+    emb = c.state.embedding
+    c.drag_start(start)
+    for s in np.linspace(0.0, 1.0, steps)[1:]:
+        xy = (1 - s) * emb[start] + s * emb[target]
+        c.drag_move(float(xy[0]), float(xy[1]))
+        _settle(explorer, 0.05)
+    c.drag_finish(float(emb[target][0]), float(emb[target][1]))
+    _settle(explorer, settle)
+
+
 def main() -> int:
     """Drive the gestures and write the four screenshots."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -83,16 +96,10 @@ def main() -> int:
     _settle(explorer, 1.5)
     take_screenshot(explorer, args.out / "01_click_decode.png")
 
-    emb = c.state.embedding
-    c.drag_start(first)
-    for s in np.linspace(0.0, 1.0, 8)[1:]:
-        xy = (1 - s) * emb[first] + s * emb[second]
-        c.drag_move(float(xy[0]), float(xy[1]))
-        _settle(explorer, 0.05)
-    c.drag_finish(float(emb[second][0]), float(emb[second][1]))
-    _settle(explorer, 1.5)
+    _drag(explorer, first, second, 8, 1.5)
     take_screenshot(explorer, args.out / "02_drag_interpolation_strip.png")
 
+    emb = c.state.embedding
     members = c.bank.indices_of(walk)
     centre = emb[first]
     radius = 0.5 * float(np.median(np.linalg.norm(emb[members] - centre, axis=1)))
@@ -121,14 +128,7 @@ def main() -> int:
     walk_code, run_code = _two_modes(explorer, walk)[0], _two_modes(explorer, run)[0]
     window.layout_combo.setCurrentIndex(window.layout_combo.findData("sequence"))
     window.find_dock.raise_()
-    emb = c.state.embedding
-    c.drag_start(walk_code)
-    for s in np.linspace(0.0, 1.0, 6)[1:]:
-        xy = (1 - s) * emb[walk_code] + s * emb[run_code]
-        c.drag_move(float(xy[0]), float(xy[1]))
-        _settle(explorer, 0.05)
-    c.drag_finish(float(emb[run_code][0]), float(emb[run_code][1]))
-    _settle(explorer, 2.0)
+    _drag(explorer, walk_code, run_code, 6, 2.0)
     take_screenshot(explorer, args.out / "05_walk_to_run_in_sequence.png")
     explorer.close()
     print(f"screenshots written to {args.out}")

@@ -153,31 +153,30 @@ class MainWindow(QMainWindow):
         bar.addWidget(self.action_combo)
 
         bar.addSeparator()
-        bar.addWidget(QLabel(" Strip steps "))
-        self.steps_spin = QSpinBox()
-        self.steps_spin.setRange(2, 16)
-        self.steps_spin.setValue(5)
-        self.steps_spin.setToolTip("Number of motions in the interpolation strip a drag leaves behind")
-        bar.addWidget(self.steps_spin)
+        self.steps_spin = _spin_box(
+            bar,
+            "Strip steps",
+            (2, 16),
+            5,
+            "Number of motions in the interpolation strip a drag leaves behind",
+        )
         self.layout_combo = QComboBox()
         self.layout_combo.addItem("side by side", "side_by_side")
         self.layout_combo.addItem("overlaid", "overlay")
         self.layout_combo.addItem("in sequence", "sequence")
         self.layout_combo.setToolTip("How several motions are shown")
         bar.addWidget(self.layout_combo)
-        bar.addWidget(QLabel(" Ghosts "))
-        self.ghosts_spin = QSpinBox()
-        self.ghosts_spin.setRange(0, 16)
-        self.ghosts_spin.setValue(4)
-        self.ghosts_spin.setToolTip("Faint poses drawn along a single motion (0: none)")
-        bar.addWidget(self.ghosts_spin)
-        bar.addWidget(QLabel(" Encode stride "))
-        self.stride_spin = QSpinBox()
-        self.stride_spin.setRange(1, 600)
-        self.stride_spin.setValue(30)
-        self.stride_spin.setSuffix(" frames")
-        self.stride_spin.setToolTip("Frames between the windows a long clip is encoded as (one code each)")
-        bar.addWidget(self.stride_spin)
+        self.ghosts_spin = _spin_box(
+            bar, "Ghosts", (0, 16), 4, "Faint poses drawn along a single motion (0: none)"
+        )
+        self.stride_spin = _spin_box(
+            bar,
+            "Encode stride",
+            (1, 600),
+            30,
+            "Frames between the windows a long clip is encoded as (one code each)",
+            suffix=" frames",
+        )
 
     def _build_menus(self) -> None:
         file_menu = self.menuBar().addMenu("&File")
@@ -332,3 +331,17 @@ class _FirstPaint(QObject):
             watched.removeEventFilter(self)
             QTimer.singleShot(0, self._window.mapPainted.emit)
         return False
+
+
+def _spin_box(
+    bar: QToolBar, label: str, bounds: tuple[int, int], value: int, tip: str, suffix: str = ""
+) -> QSpinBox:
+    """A labelled integer spin box added to the toolbar ``bar``."""
+    bar.addWidget(QLabel(f" {label} "))
+    spin = QSpinBox()
+    spin.setRange(*bounds)
+    spin.setValue(value)
+    spin.setSuffix(suffix)
+    spin.setToolTip(tip)
+    bar.addWidget(spin)
+    return spin
