@@ -12,6 +12,7 @@ from typing import TYPE_CHECKING
 
 from PySide6.QtCore import QByteArray, QEvent, QObject, QSettings, Qt, QTimer, Signal
 from PySide6.QtGui import QCloseEvent, QKeySequence
+from PySide6.QtOpenGLWidgets import QOpenGLWidget
 from PySide6.QtWidgets import (
     QComboBox,
     QDockWidget,
@@ -63,6 +64,10 @@ class MainWindow(QMainWindow):
         self._viewport: SkeletonViewport | None = None
         self._viewport_placeholder = QLabel("Opening the 3-D view…")
         self._viewport_placeholder.setAlignment(Qt.AlignCenter)
+        # Qt re-creates (unmaps and maps) a shown window when its first QOpenGLWidget arrives, which blacks
+        # the screen out for a moment when the 3-D view opens; one hidden from the start prevents that.
+        self._opengl_from_start = QOpenGLWidget(self)
+        self._opengl_from_start.hide()
         self.timeline = Timeline()
         self.mode_panel = ModePanel()
         self.trajectory = TrajectoryCanvas()

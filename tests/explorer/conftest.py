@@ -53,9 +53,16 @@ def open_explorer(qtbot, tmp_path: Path) -> Iterator[Callable[..., Opened]]:
     """Open explorers (temp settings file); on teardown close them and check nothing leaked."""
     opened: list[Opened] = []
 
-    def _open(model: Path | None, settings: Path | None = None, wait: bool = True) -> Opened:
+    def _open(
+        model: Path | None,
+        settings: Path | None = None,
+        wait: bool = True,
+        before_show: Callable[[object], None] | None = None,
+    ) -> Opened:
         settings = settings or tmp_path / "settings.ini"
         explorer = create_explorer(model, None, QSettings(str(settings), QSettings.Format.IniFormat))
+        if before_show is not None:
+            before_show(explorer.window)
         explorer.window.show()
         qtbot.waitExposed(explorer.window)
         item = Opened(explorer, settings)

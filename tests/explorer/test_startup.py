@@ -60,3 +60,19 @@ def test_map_is_painted_before_the_model_loads(qtbot, open_explorer, tiny_model_
     assert len(window.latent_map.visible_rows()) == len(c.bank.codes)
     with qtbot.waitSignal(c.shownChanged, timeout=20_000):
         c.click_point(0)
+
+
+def test_opening_the_3d_view_does_not_recreate_the_shown_window(qtbot, open_explorer, tiny_model_dir) -> None:
+    native_ids: list[int] = []
+    hidden: list[bool] = []
+
+    def watch(window) -> None:
+        window.winId()  # the native window the user sees, created now so its id is known before show
+        native_ids.append(int(window.winId()))
+        window.windowHandle().visibleChanged.connect(lambda visible: visible or hidden.append(True))
+
+    opened: Opened = open_explorer(tiny_model_dir, wait=False, before_show=watch)
+    window = opened.window
+    qtbot.waitUntil(window.has_viewport, timeout=20_000)
+    qtbot.wait(300)
+    assert (int(window.winId()), hidden) == (native_ids[0], []), "the window blinked out"
