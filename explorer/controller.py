@@ -609,7 +609,8 @@ class Controller(QObject):
                 motion = decode_one(self.loaded, code, action, end, mode)
                 name = f"#{i} {bank.sources[i]}"
                 items.append(Decoded(motion, f"{name} (decoded)", code, action, end, mode, None, i, note))
-                clip = real.get(str(bank.sources[i])) if with_real else None
+                source = str(bank.sources[i])  # the bank may name the clip from another root folder
+                clip = real.get(source, real.get(Path(source).stem)) if with_real else None
                 if clip is not None:  # the window the code encodes, placed and turned as the decode is
                     from engine.generate import bank_window
 

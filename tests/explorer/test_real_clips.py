@@ -1,0 +1,81 @@
+"""``--data``: a clicked code plays its real clip beside the decode, as the same window, start and heading."""
+
+from __future__ import annotations
+
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from engine.latent.bank import LatentBank
+from engine.modelio import save_bank
+from engine.motion.motion import Motion
+from engine.train.windows import canonicalize
+from tests.explorer.conftest import Opened
+from tests.explorer.gestures import click_map, outside_view, played_points
+
+
+@pytest.fixture(scope="module")
+def model_and_data(tmp_path_factory, tiny_model_dir: Path, procedural_clips: list[Motion]) -> tuple:
+    """The tiny model with its bank naming Bandai-style files, and a folder of those files as BVH."""
+    root = tmp_path_factory.mktemp("real_clips")
+    model = root / "model"
+    shutil.copytree(tiny_model_dir, model)
+    bank = LatentBank.load(model / "latent_bank.npz")
+    names = {clip.meta["source"]: _bandai_name(clip) for clip in procedural_clips}
+    bank.sources = np.array([f"clips/{names[s]}" for s in bank.sources])  # trained from another folder
+    save_bank(model, bank)
+    data = root / "data"
+    data.mkdir()
+    for clip in procedural_clips:
+        clip.save(data / names[clip.meta["source"]])
+    return model, data
+
+
+def _bandai_name(clip: Motion) -> str:
+    """The clip's name as the Bandai-Namco files are named (no hyphen in a style)."""
+    number = Path(clip.meta["source"]).name.rsplit("_", 1)[1]
+    return f"dataset-2_{clip.action}_{clip.meta['style'].replace('-', '')}_{number}.bvh"
+
+
+def _distances(joints: np.ndarray) -> np.ndarray:
+    """(T, J, J) joint-to-joint distances: unchanged by any placement or turn of the body."""
+    return np.linalg.norm(joints[:, :, None] - joints[:, None], axis=-1)
+
+
+def test_real_clip_is_the_encoded_window_at_the_decodes_start_and_heading(
+    qtbot, open_explorer, model_and_data
+) -> None:
+    model, data = model_and_data
+    opened: Opened = open_explorer(model)
+    c = opened.controller
+    qtbot.waitUntil(lambda: c.state.model is not None, timeout=60_000)
+    c.open_data(data)
+    qtbot.waitUntil(lambda: c.state.data_dir is not None, timeout=60_000)
+    assert f"{len(list(data.glob('*.bvh')))} clips" in opened.window.status_label.text()
+    walks = np.flatnonzero(c.bank.actions == c.bank.action_names.index("walk"))
+    index = int(walks[0])
+    with qtbot.waitSignal(c.shownChanged, timeout=30_000):
+        click_map(qtbot, opened, c.state.embedding[index])
+    assert [d.label.split(" (")[-1] for d in c.state.shown] == ["decoded)", "real clip)"]
+    decoded, real = (d.motion for d in c.state.shown)
+    assert real.n_frames == decoded.n_frames == c.loaded.window
+
+    source = Motion.from_file(data / Path(str(c.bank.sources[index])).name)
+    start = real.meta["window_start"]
+    assert start == (source.n_frames - c.loaded.window) // 2  # the centre window, as the bank encodes it
+    window = source.joints[start : start + c.loaded.window]
+    np.testing.assert_allclose(_distances(real.joints), _distances(window), atol=1e-4)
+
+    # Both start at the origin; the clip faces +z as the model's training windows do (the tiny model's
+    # decode is too rough to measure its facing on).
+    root = real.skeleton.root
+    for motion in (real, decoded):
+        assert np.hypot(*motion.joints[0, root, [0, 2]]) < 0.02
+    assert abs(canonicalize(real.joints, real.skeleton)[1]) < np.radians(3)
+    np.testing.assert_allclose(real.joints[0, root, 1], decoded.joints[0, root, 1], atol=0.1)
+
+    travel = real.joints[-1, root, [0, 2]] - real.joints[0, root, [0, 2]]
+    assert travel[1] > 0.5 * np.linalg.norm(travel)  # a walk facing +z walks along +z
+    assert outside_view(opened.window.viewport, played_points(opened)) == 0
