@@ -279,6 +279,10 @@ class LatentMap(QWidget):
         """The polylines drawn by ``set_paths``, each (M, 2)."""
         return [np.stack([np.asarray(a) for a in item.getData()], axis=1) for item in self._paths]
 
+    def point_colors(self) -> np.ndarray:
+        """(N, 4) uint8 RGBA of the points as drawn (before hover, selection or hiding)."""
+        return np.array([b.color().getRgb() for b in self._brushes], dtype=np.uint8).reshape(-1, 4)
+
     def extra_points(self) -> np.ndarray:
         """(K, 2) positions of the extra points drawn."""
         x, y = self._extra.getData()
