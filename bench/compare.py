@@ -142,12 +142,13 @@ def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
     return args
 
 
-def shown(path: Path) -> str:
-    """``path`` relative to the repository when inside it, else its last two parts (no machine paths)."""
+def shown(path: Path, outside: str) -> str:
+    """``path`` relative to the repository when inside it, else ``outside`` (a placeholder such as the
+    option's name: no machine paths, no fragments of a temporary folder)."""
     try:
         return str(Path(path).resolve().relative_to(REPO))
     except ValueError:
-        return str(Path(*Path(path).parts[-2:]))
+        return outside
 
 
 def _cell(block: dict[str, dict[str, float]], key: str, decimals: int) -> str:
@@ -314,7 +315,14 @@ def a2m_decoder(loaded: LoadedA2m) -> Callable[[], None]:
     return decode
 
 
-_PATH_OPTIONS = ("--data", "--previous", "--classifier", "--runs", "--results")
+#: Path options and how a value outside the repository is shown.
+_PATH_OPTIONS = {
+    "--data": "DATA",
+    "--previous": "PREVIOUS",
+    "--classifier": "CLASSIFIER",
+    "--runs": "RUNS",
+    "--results": "RESULTS",
+}
 
 
 def _shown_argv(argv: Sequence[str]) -> list[str]:
@@ -322,7 +330,7 @@ def _shown_argv(argv: Sequence[str]) -> list[str]:
     out = []
     for i, token in enumerate(argv):
         if i > 0 and argv[i - 1] in _PATH_OPTIONS:
-            token = shown(Path(token))
+            token = shown(Path(token), _PATH_OPTIONS[argv[i - 1]])
         out.append(f"'{token}'" if " " in token else token)
     return out
 
@@ -370,9 +378,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         config = OdmoConfig(n_actions=len(names), n_joints=skeleton.n_joints, epochs=args.epochs, **changes)
         folder = args.runs / key
         if key == "odmo" and _default_matches(config, fingerprint, args.seed):
-            folder, notes[key] = DEFAULT_MODEL, f"reused the default model {shown(DEFAULT_MODEL)}"
+            folder, notes[key] = DEFAULT_MODEL, f"reused the default model {shown(DEFAULT_MODEL, 'DEFAULT')}"
         elif args.reuse and _finished(folder, args.epochs):
-            notes[key] = f"reused {shown(folder)}"
+            notes[key] = f"reused {shown(folder, f'RUNS/{key}')}"
         else:
             bar, show = _bar(key, config.epochs)
             train(
@@ -380,26 +388,26 @@ def main(argv: Sequence[str] | None = None) -> int:
                 progress=show, bank_projections=("pca",),
             )  # fmt: skip
             bar.close()
-            notes[key] = f"trained into {shown(folder)}"
+            notes[key] = f"trained into {shown(folder, f'RUNS/{key}')}"
         folders[key] = folder
     default_wanted = "odmo_default" in wanted and DEFAULT_MODEL not in folders.values()
     if default_wanted and _default_matches(None, fingerprint, args.seed):
         folders["odmo_default"] = DEFAULT_MODEL
         epochs = json.loads((DEFAULT_MODEL / META_FILE).read_text())["provenance"]["epochs"]
         notes["odmo_default"] = (
-            f"{shown(DEFAULT_MODEL)}, trained {epochs} epochs by bench/train_default.py "
+            f"{shown(DEFAULT_MODEL, 'DEFAULT')}, trained {epochs} epochs by bench/train_default.py "
             "(its MODEL_CARD.md has the command and settings)"
         )
     labels = {}
     if "odmo_previous" in wanted:
         folders["odmo_previous"] = args.previous
         labels["odmo_previous"] = args.previous_label or ROWS["odmo_previous"]
-        notes["odmo_previous"] = f"evaluated as it is ({shown(args.previous)})"
+        notes["odmo_previous"] = f"evaluated as it is ({shown(args.previous, 'PREVIOUS')})"
     a2m_config = A2mConfig(n_actions=len(names), n_joints=skeleton.n_joints, epochs=args.epochs)
     if "a2m" in wanted:
         folders["a2m"] = args.runs / "a2m"
         if args.reuse and _finished(folders["a2m"], args.epochs):
-            notes["a2m"] = f"reused {shown(folders['a2m'])}"
+            notes["a2m"] = f"reused {shown(folders['a2m'], 'RUNS/a2m')}"
         else:
             bar, show = _bar("a2m", a2m_config.epochs)
             train_a2m(
@@ -407,7 +415,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                 resume=args.reuse, progress=show,
             )  # fmt: skip
             bar.close()
-            notes["a2m"] = f"trained into {shown(folders['a2m'])}"
+            notes["a2m"] = f"trained into {shown(folders['a2m'], 'RUNS/a2m')}"
 
     entries: list[dict[str, Any]] = []
     decoders: dict[str, Callable[[], None]] = {}
@@ -428,7 +436,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         saved = args.runs / f"eval_{row}.json"
         if args.reuse and _fresh_eval(saved, folders[key], classifier, evaluation, strategy):
             report = json.loads(saved.read_text())
-            notes[key] = notes.get(key, "") + f" (evaluation reused from {shown(saved)})"
+            notes[key] = (
+                notes.get(key, "") + f" (evaluation reused from {shown(saved, f'RUNS/{saved.name}')})"
+            )
         else:
             report = evaluate(loaded, test_clips, classifier, strategy=strategy, **evaluation)
             atomic_write_text(saved, json.dumps(report, indent=2))
@@ -451,7 +461,7 @@ def main(argv: Sequence[str] | None = None) -> int:
 
     windows = f"{a2m_config.epoch_size:,}"
     info = {
-        "Data": f"`{shown(args.data)}`: {len(dataset.clips)} clips, {len(names)} actions "
+        "Data": f"`{shown(args.data, args.data.name)}`: {len(dataset.clips)} clips, {len(names)} actions "
         f"({', '.join(names)}), {skeleton.n_joints} joints, windows of 60 frames at 20 fps",
         "Split": f"`bench/heldout.py`: {HELDOUT_FRACTION:.0%} of the clips of every action × style held out "
         f"(seed {SPLIT_SEED}): {len(train_clips)} train, {len(test_clips)} held-out; every model also keeps "
@@ -466,7 +476,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         "Models": "; ".join(f"{(ROWS | labels)[k]}: {v}" for k, v in notes.items()),
         "Seeds": f"training seed {args.seed}; evaluation seed {args.seed} "
         f"({args.repeats} repeats × {args.n_per_action} motions per action, repeat r uses rng [seed, r])",
-        "Classifier": f"`{shown(classifier.path)}`: accuracy {classifier.test_accuracy:.3f} on every window "
+        "Classifier": f"`{shown(classifier.path, 'CLASSIFIER')}`: accuracy {classifier.test_accuracy:.3f} "
+        "on every window "
         f"(stride {classifier.config.stride}) of {classifier.n_test} held-out training-side clips; "
         "per action "
         + ", ".join(f"{a} {v:.3f}" for a, v in classifier.test_accuracy_per_action.items())
