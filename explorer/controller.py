@@ -138,6 +138,7 @@ class Controller(QObject):
         )
         w.open_model_action.triggered.connect(self._ask_model)
         w.open_data_action.triggered.connect(self._ask_data)
+        w.select_clip_action.triggered.connect(self.select_clip_windows)
         w.play_selection_action.triggered.connect(self.play_selection)
         w.variations_action.triggered.connect(self.sample_variations)
         w.fit_mode_action.triggered.connect(self.fit_local_mode)
@@ -614,7 +615,9 @@ class Controller(QObject):
                 if clip is not None:  # the window the code encodes, placed and turned as the decode is
                     from engine.generate import bank_window
 
-                    items.append(Decoded(bank_window(self.loaded, clip), f"{name} (real clip)", None, action))
+                    start = bank.meta[i].get("window_start") if "window_stride" in bank.meta[i] else None
+                    window = bank_window(self.loaded, clip, start)
+                    items.append(Decoded(window, f"{name} (real clip)", None, action))
             return tuple(items)
 
         self.decoder.submit(job)
@@ -785,6 +788,19 @@ class Controller(QObject):
         self.state.marker = None
         self._local_mode = None
         self._draw_overlays()
+
+    def select_clip_windows(self) -> None:
+        """Select the windows of the playing bank code's clip (a bank built with a stride holds several)."""
+        index = next((d.bank_index for d in self.state.shown if d.bank_index is not None), None)
+        if index is None:
+            self.window.show_status("Play a code of the bank first: its clip's windows are then selected.")
+            return
+        windows = self.bank.windows_of(index)
+        self.state.selection = tuple(int(i) for i in windows)
+        self.window.show_status(
+            f"{len(windows)} window(s) of {self.bank.sources[index]} selected; "
+            "Selection ▸ Play selection plays them in time order."
+        )
 
     def play_selection(self) -> None:
         """Decode up to ``MAX_PLAYED`` selected codes that cover the selection and play them together.

@@ -202,6 +202,8 @@ class MainWindow(QMainWindow):
         self.quit_action.triggered.connect(self.close)
 
         sel = self.menuBar().addMenu("&Selection")
+        self.select_clip_action = sel.addAction("Select the &clip's windows")
+        self.select_clip_action.setToolTip("Select every code of the playing code's clip, in time order")
         self.play_selection_action = sel.addAction("&Play selection together")
         self.variations_action = sel.addAction("Sample &variations around selection")
         self.fit_mode_action = sel.addAction("&Fit a local mode to selection")

@@ -10,7 +10,7 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
-from engine.cli.options import add_up_axis
+from engine.cli.options import add_up_axis, positive_int
 
 # Printed order of the metrics table; any other metric follows in the order evaluate() returns it.
 TABLE_ORDER = (
@@ -193,13 +193,6 @@ def _json_ready(value: Any) -> Any:
     return value
 
 
-def _positive(text: str) -> int:
-    value = int(text)
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"must be at least 1, got {value}")
-    return value
-
-
 def register(subparsers: argparse._SubParsersAction) -> None:
     """Add ``train-classifier`` and ``eval`` to the ``odmo`` parser."""
     p = subparsers.add_parser(
@@ -209,11 +202,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )
     p.add_argument("--data", required=True, help="labelled dataset folder")
     p.add_argument("--out", required=True, type=Path, help="classifier folder to write")
-    p.add_argument("--epochs", type=_positive, default=60, help="passes over the training clips (60)")
+    p.add_argument("--epochs", type=positive_int, default=60, help="passes over the training clips (60)")
     p.add_argument("--seed", type=int, default=0, help="random seed (0)")
-    p.add_argument("--window", type=_positive, default=60, help="frames per window, as the model (60)")
+    p.add_argument("--window", type=positive_int, default=60, help="frames per window, as the model (60)")
     p.add_argument("--fps", type=float, default=20.0, help="frame rate of the windows, as the model (20)")
-    p.add_argument("--stride", type=_positive, default=10, help="frames between window starts (10)")
+    p.add_argument("--stride", type=positive_int, default=10, help="frames between window starts (10)")
     p.add_argument("--val-fraction", type=float, default=0.2, help="clips held out for the accuracy (0.2)")
     _add_label_options(p)
     p.set_defaults(func=_cmd_train_classifier)
@@ -226,8 +219,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     e.add_argument("--model", required=True, help="model folder")
     e.add_argument("--real", required=True, help="labelled folder of real clips")
     e.add_argument("--classifier", type=Path, help="classifier folder (from odmo train-classifier)")
-    e.add_argument("--repeats", type=_positive, default=10, help="sample sets for the intervals (10)")
-    e.add_argument("--n-per-action", type=_positive, default=50, help="motions per action and set (50)")
+    e.add_argument("--repeats", type=positive_int, default=10, help="sample sets for the intervals (10)")
+    e.add_argument("--n-per-action", type=positive_int, default=50, help="motions per action and set (50)")
     e.add_argument("--strategy", default="mode_preserving", choices=("mode_preserving", "conventional"))
     e.add_argument("--json", type=Path, help="write the results as JSON here")
     e.add_argument("--seed", type=int, default=0, help="random seed (0)")

@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from tqdm import tqdm
 
-from engine.cli.options import add_up_axis
+from engine.cli.options import add_up_axis, positive_int
 from engine.errors import ConfigError, DataError
 from engine.fileio import folder_lock
 from engine.limits import check_count
@@ -202,7 +202,7 @@ def _cmd_bank(args: argparse.Namespace) -> int:
 
 
 def _bank_locked(args: argparse.Namespace) -> int:
-    from engine.generate import encode_clips
+    from engine.generate import encode_bank_windows, encode_clips
     from engine.latent.bank import build_bank
     from engine.modelio import load_model, save_bank
 
@@ -211,7 +211,14 @@ def _bank_locked(args: argparse.Namespace) -> int:
     unknown = sorted({c.action for c in dataset.clips} - set(loaded.action_names))
     if unknown:
         raise DataError(f"{args.data}: actions {unknown} are not the model's {loaded.action_names}")
-    codes, ends = encode_clips(loaded, dataset.clips)
+    if args.stride is None:
+        codes, ends = encode_clips(loaded, dataset.clips)
+        clips, metas = dataset.clips, [dict(c.meta) for c in dataset.clips]
+    else:
+        codes, ends, owners, starts = encode_bank_windows(loaded, dataset.clips, args.stride)
+        clips = [dataset.clips[k] for k in owners]
+        window = {"window_stride": args.stride}
+        metas = [dict(c.meta) | window | {"window_start": int(s)} for c, s in zip(clips, starts, strict=True)]
     progress = tqdm(total=1.0, bar_format=_BAR, file=sys.stderr)
     try:
 
@@ -221,10 +228,10 @@ def _bank_locked(args: argparse.Namespace) -> int:
 
         bank = build_bank(
             codes,
-            np.array([loaded.action_names.index(c.action) for c in dataset.clips]),
+            np.array([loaded.action_names.index(c.action) for c in clips]),
             ends,
-            [str(c.meta.get("source", c.meta.get("path", i))) for i, c in enumerate(dataset.clips)],
-            [dict(c.meta) for c in dataset.clips],
+            [str(c.meta.get("source", c.meta.get("path", i))) for i, c in enumerate(clips)],
+            metas,
             loaded.action_names,
             projections=args.projections,
             seed=args.seed,
@@ -320,6 +327,14 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--model", type=Path, required=True, help="model folder")
     _data_arguments(p)
     p.add_argument("--seed", type=int, default=0)
+    p.add_argument(
+        "--stride",
+        type=positive_int,
+        default=None,
+        metavar="FRAMES",
+        help="a code for every window every FRAMES frames at the model's rate, so a long clip is a path "
+        "on the map (default: one code per clip, its centre window)",
+    )
     p.set_defaults(func=_cmd_bank)
 
     p = subparsers.add_parser("sample", help="sample motions of one action from its discovered modes")

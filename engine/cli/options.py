@@ -13,3 +13,11 @@ def add_up_axis(parser: argparse.ArgumentParser) -> None:
         default="y",
         help="up axis of the input motion files (BVH is Y-up; some tools and raw AMASS joints are Z-up)",
     )
+
+
+def positive_int(text: str) -> int:
+    """An argparse type: a whole number of at least 1."""
+    value = int(text)
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"must be at least 1, got {value}")
+    return value

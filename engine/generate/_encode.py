@@ -102,28 +102,61 @@ def window_starts(n_frames: int, window: int, stride: int) -> np.ndarray:
     return np.unique(np.append(starts, last)).astype(np.int64)
 
 
+def _at_model_rate(loaded: LoadedModel, motion: Motion) -> Motion:
+    """``motion`` on the model's skeleton at the model's frame rate."""
+    moved = conform(loaded, motion)
+    return moved.resample(loaded.fps) if abs(moved.fps - loaded.fps) > 1e-6 else moved
+
+
+def clip_windows(loaded: LoadedModel, motion: Motion, stride: int) -> tuple[np.ndarray, list[Motion]]:
+    """First frames (W,) and the T-frame windows of ``motion`` every ``stride`` frames at the model's fps
+    (the last window ends at the clip's end), on the model's skeleton."""
+    moved = _at_model_rate(loaded, motion)
+    starts = window_starts(moved.n_frames, loaded.window, stride)
+    return starts, [moved.with_joints(moved.joints[s : s + loaded.window]) for s in starts]
+
+
 def encode_windows(loaded: LoadedModel, motion: Motion, stride: int | None = None) -> WindowCodes:
     """Encode ``motion`` as its T-frame windows every ``stride`` frames (default T / 2) at the model's fps,
     so that a long clip becomes a path of codes; each window is canonicalised like a training window."""
     stride = loaded.window // 2 if stride is None else int(stride)
-    moved = conform(loaded, motion)
-    if abs(moved.fps - loaded.fps) > 1e-6:
-        moved = moved.resample(loaded.fps)
-    starts = window_starts(moved.n_frames, loaded.window, stride)
-    pieces = [moved.with_joints(moved.joints[s : s + loaded.window]) for s in starts]
+    starts, pieces = clip_windows(loaded, motion, stride)
     codes, ends = encode_clips(loaded, pieces)
     guesses = [guess_action(loaded, c) for c in codes]
     actions = np.array([-1 if g is None else g for g in guesses], dtype=np.int64)
     return WindowCodes(codes, ends, starts, stride, actions)
 
 
-def bank_window(loaded: LoadedModel, clip: Motion) -> Motion:
-    """The window of ``clip`` that a bank code of it encodes (its centre T frames at the model's fps),
-    canonicalised as the model's output is (frame-0 root at the origin, facing +z) at display height."""
+def encode_bank_windows(
+    loaded: LoadedModel, clips: Sequence[Motion], stride: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Codes (N, D), ends (N, 3), clip index (N,) and first frame (N,) of every window of ``clips`` every
+    ``stride`` frames: a bank in which a long clip is a path of codes rather than one point."""
+    owners, starts, pieces = [], [], []
+    for k, clip in enumerate(clips):
+        first, windows = clip_windows(loaded, clip, stride)
+        owners += [k] * len(windows)
+        starts += [int(f) for f in first]
+        pieces += windows
+    codes, ends = encode_clips(loaded, pieces)
+    return codes, ends, np.array(owners, dtype=np.int64), np.array(starts, dtype=np.int64)
+
+
+def bank_window(loaded: LoadedModel, clip: Motion, start: int | None = None) -> Motion:
+    """The window of ``clip`` that a bank code of it encodes (its T frames from ``start`` at the model's
+    fps; its centre T frames when None), canonicalised as the model's output is (frame-0 root at the
+    origin, facing +z) at display height."""
+    if start is not None:
+        clip = _at_model_rate(loaded, clip)
+        last = max(clip.n_frames - loaded.window, 0)
+        if not 0 <= start <= last:
+            raise ConfigError(f"window start {start} is outside the clip's 0..{last}")
+        clip = clip.with_joints(clip.joints[start : start + loaded.window])
     moved = dataclasses.replace(conform(loaded, clip), action=loaded.action_names[0])
     prepared = prepare_clips([moved], loaded.action_names, loaded.fps, loaded.window)
     window = crop_windows(prepared, np.arange(1), None)
     length = int(window.mask[0].sum())
     joints = window.joints[0, :length] + np.array([0.0, loaded.root_height, 0.0], dtype=np.float32)
-    meta = dict(clip.meta) | {"window_start": int(window.starts[0])}
+    first = int(window.starts[0]) if start is None else int(start)
+    meta = dict(clip.meta) | {"window_start": first}
     return Motion(joints, loaded.fps, loaded.skeleton, action=clip.action, meta=meta)

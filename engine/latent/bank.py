@@ -60,6 +60,12 @@ class LatentBank:
             raise ConfigError(f"unknown action {action}; the bank has {len(self.action_names)} actions")
         return np.flatnonzero(self.actions == int(action))
 
+    def windows_of(self, index: int) -> np.ndarray:
+        """Indices of every code of ``index``'s clip in time order (its windows in a bank built with a
+        stride; just ``index`` in a bank of one code per clip)."""
+        same = np.flatnonzero(self.sources == self.sources[int(index)])
+        return same[np.argsort([int(self.meta[i].get("window_start", 0)) for i in same], kind="stable")]
+
     def end_location(self, codes: np.ndarray, action: int, k: int = 8) -> np.ndarray:
         """End locations (M, 3) of codes (M, D): continuous blend of the action's k nearest codes' ends."""
         idx = self.indices_of(action)

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from engine import cli
-from engine.generate import decode, encode, sample
+from engine.generate import bank_window, decode, encode, encode_clips, sample
 from engine.modelio import BANK_FILE, WEIGHTS_FILE, load_model
 from engine.motion.motion import Motion
 
@@ -155,6 +155,35 @@ def test_bank_rebuilds_the_training_codes(odmo, model_copy, data_dir, tiny_model
     gaps = np.linalg.norm(rebuilt.codes[:, None] - original.codes[None], axis=2).min(axis=1)
     assert gaps.max() < 1e-4
     assert {m.get("style") for m in rebuilt.meta} >= {"stroll", "march", "sidestep"}
+
+
+def _distances(joints: np.ndarray) -> np.ndarray:
+    """(T, J, J) joint-to-joint distances, which no placement or turn of the body changes."""
+    return np.linalg.norm(joints[:, None] - joints[:, :, None], axis=-1)
+
+
+def test_bank_with_a_stride_makes_each_long_clip_a_path_of_window_codes(odmo, model_copy, data_dir, capsys):
+    argv = ["bank", "--model", model_copy, "--data", data_dir, "--pattern", PATTERN, "--projections", "pca"]
+    assert odmo(*argv, "--stride", 20) == 0
+    loaded = load_model(model_copy)
+    bank, window = loaded.bank, loaded.window
+    for path in sorted(data_dir.glob("*.npz"))[::9]:
+        clip = Motion.from_file(path)
+        rows = [i for i, source in enumerate(bank.sources) if source == path.name]
+        starts = [bank.meta[i]["window_start"] for i in rows]
+        last = max(clip.n_frames - window, 0)  # the clips are at the model's 20 fps
+        assert starts == sorted({*range(0, last + 1, 20), last})
+        assert all(bank.meta[i]["window_stride"] == 20 for i in rows)
+        for i, start in zip(rows, starts, strict=True):
+            piece = clip.with_joints(clip.joints[start : start + window])
+            np.testing.assert_allclose(bank.codes[i], encode_clips(loaded, [piece])[0][0], atol=1e-5)
+        shown = bank_window(loaded, clip, starts[-1])
+        assert shown.meta["window_start"] == starts[-1] and shown.n_frames == min(window, clip.n_frames)
+        moved = clip.joints[starts[-1] : starts[-1] + window]
+        np.testing.assert_allclose(_distances(shown.joints), _distances(moved), atol=1e-4)
+    with pytest.raises(SystemExit, match="2"):
+        odmo(*argv, "--stride", 0)
+    assert "--stride: must be at least 1" in capsys.readouterr().err
 
 
 @pytest.mark.slow

@@ -8,6 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from engine import cli
 from engine.latent.bank import LatentBank
 from engine.modelio import save_bank
 from engine.motion.motion import Motion
@@ -79,3 +80,62 @@ def test_real_clip_is_the_encoded_window_at_the_decodes_start_and_heading(
     travel = real.joints[-1, root, [0, 2]] - real.joints[0, root, [0, 2]]
     assert travel[1] > 0.5 * np.linalg.norm(travel)  # a walk facing +z walks along +z
     assert outside_view(opened.window.viewport, played_points(opened)) == 0
+
+
+@pytest.fixture(scope="module")
+def strided_model(tmp_path_factory, model_and_data) -> Path:
+    """The model above, its bank rebuilt by ``odmo bank --stride 20`` (a code every 20 frames of a clip)."""
+    model, data = model_and_data
+    strided = tmp_path_factory.mktemp("strided") / "model"
+    shutil.copytree(model, strided)
+    with pytest.MonkeyPatch.context() as env:
+        env.setenv("ODMO_CACHE_DIR", str(strided.parent / "cache"))
+        argv = [
+            "bank",
+            "--model",
+            str(strided),
+            "--data",
+            str(data),
+            "--projections",
+            "pca",
+            "--stride",
+            "20",
+        ]
+        assert cli.main(argv) == 0
+    return strided
+
+
+def test_a_long_clip_is_a_path_of_codes_that_plays_in_time_order(
+    qtbot, open_explorer, strided_model, model_and_data
+):
+    _, data = model_and_data
+    opened: Opened = open_explorer(strided_model)
+    window, c = opened.window, opened.controller
+    qtbot.waitUntil(lambda: c.state.model is not None, timeout=60_000)
+    c.open_data(data)
+    qtbot.waitUntil(lambda: c.state.data_dir is not None, timeout=60_000)
+    counts = {s: int((c.bank.sources == s).sum()) for s in set(c.bank.sources)}
+    source = max(counts, key=counts.get)
+    rows = np.flatnonzero(c.bank.sources == source)
+    assert len(rows) >= 3
+    late = int(rows[np.argmax([c.bank.meta[i]["window_start"] for i in rows])])
+    with qtbot.waitSignal(c.shownChanged, timeout=30_000):
+        click_map(qtbot, opened, c.state.embedding[late])
+    _, real = (d.motion for d in c.state.shown)
+    start = c.bank.meta[late]["window_start"]
+    assert real.meta["window_start"] == start > 0  # the clicked window of the clip, not its centre
+    clip = Motion.from_file(data / source).joints[start : start + c.loaded.window]
+    np.testing.assert_allclose(_distances(real.joints), _distances(clip), atol=1e-4)
+
+    window.select_clip_action.trigger()
+    starts = [c.bank.meta[i]["window_start"] for i in c.state.selection]
+    assert sorted(c.state.selection) == sorted(rows) and starts == sorted(starts)
+    window.layout_combo.setCurrentIndex(window.layout_combo.findData("sequence"))
+    with qtbot.waitSignal(c.shownChanged, timeout=60_000):
+        window.play_selection_action.trigger()
+    played = [d.bank_index for d in c.state.shown]
+    assert played == list(c.state.selection)[: len(played)] and len(played) == min(len(rows), 12)
+    [chained] = c._played  # in sequence: one motion, each window starting where the last ended
+    step = np.linalg.norm(np.diff(chained.joints[:, chained.skeleton.root, [0, 2]], axis=0), axis=1)
+    assert chained.n_frames == sum(d.motion.n_frames for d in c.state.shown)
+    assert step.max() < 0.2, "the skeleton jumps between windows"
