@@ -1,9 +1,9 @@
-"""Evaluate the Action2Motion baseline with the metrics and repeat/rng scheme of ``evaluate.evaluate``.
+"""Evaluate an Action2Motion model with the metrics and repeat/rng scheme of ``evaluate.evaluate``.
 
 Both run ``evaluate.evaluate_sets``, so for the same clips, classifier and seed the real row is identical
 and the generated rows of ODMO and A2M are compared against the same real windows. Mode, style and
-end-point metrics do not apply to A2M (no code space, no end location) and are listed in
-``meta["not_applicable"]``.
+end-point metrics do not apply to A2M (its samples come from its learned prior, not from modes; it takes
+no end location) and are listed in ``meta["not_applicable"]``.
 """
 
 from __future__ import annotations
@@ -60,7 +60,7 @@ def _generated_windows(
     generator.manual_seed(int(rng.integers(2**63)))
     motions, labels = [], []
     for a in actions:
-        joints = generate_a2m(loaded, int(a), n, generator)
+        joints, _ = generate_a2m(loaded, int(a), n, generator)
         motions.extend(Motion(j, loaded.fps, loaded.skeleton) for j in joints)
         labels.extend([int(a)] * n)
     heights = root_heights(motions) + np.float32(loaded.root_height)  # the model's origin is frame 0's root
@@ -93,7 +93,7 @@ def evaluate_a2m(
     if len(held) == 0:
         log.warning("every real clip is a training clip of the model; reconstruction is on training clips")
     recon_idx = held if len(held) else np.arange(len(real_clips))
-    log.info("evaluating the A2M baseline %s", loaded.path)
+    log.info("evaluating the A2M model %s", loaded.path)
     real_runs, gen_runs = evaluate_sets(
         prepared,
         classifier,

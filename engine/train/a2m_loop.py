@@ -1,4 +1,4 @@
-"""Training loop of the Action2Motion baseline: ODMO's windows, split and budget; A2M's losses."""
+"""Training loop of Action2Motion: ODMO's windows, split and budget; A2M's losses, code space and bank."""
 
 from __future__ import annotations
 
@@ -12,16 +12,20 @@ from pathlib import Path
 
 import numpy as np
 import torch
+from scipy.spatial.transform import Rotation
+from sklearn.decomposition import PCA
 
 from engine import __version__
 from engine.errors import CancelledError, ConfigError, ModelFormatError
+from engine.latent.bank import LatentBank, build_bank
 from engine.model.a2m import A2M_LOSS_TERMS, A2mConfig, A2mModel, a2m_losses
-from engine.modelio import resolve_device, write_model_folder
+from engine.modelio import resolve_device, save_bank, write_model_folder
+from engine.motion.ik import joints_to_rotations
 from engine.motion.motion import Motion
 from engine.train.checkpoint import checkpoint_path, load_checkpoint, save_checkpoint
 from engine.train.loop import LOG_FILE, TrainProgress, TrainResult, write_log
 from engine.train.pairs import PairSampler, split_clips
-from engine.train.windows import WindowBatch, crop_windows, prepare_clips
+from engine.train.windows import PreparedClips, WindowBatch, crop_windows, prepare_clips
 
 log = logging.getLogger(__name__)
 
@@ -41,7 +45,75 @@ def _losses(
     mask = torch.from_numpy(np.asarray(batch.mask, bool)).to(device)
     actions = torch.from_numpy(np.asarray(batch.actions, np.int64)).to(device)
     out = model(joints, actions, teacher=teacher, generator=generator)
-    return a2m_losses(model.config, joints, mask, out)
+    return a2m_losses(model.config, joints, mask, out, batch.root)
+
+
+def rest_rotations(prepared: PreparedClips, indices: np.ndarray) -> np.ndarray:
+    """(J, 3) axis-angle of each joint's mean local rotation over the canonical centre windows of clips
+    ``indices`` (inverse kinematics, ``engine.motion.ik``): where a "lie" generator's output starts."""
+    batch = crop_windows(prepared, indices, None)
+    frames = batch.joints[batch.mask]
+    _, local, _, _ = joints_to_rotations(Motion(frames, prepared.fps, prepared.skeleton))
+    return np.stack(
+        [Rotation.from_quat(local[:, j], scalar_first=True).mean().as_rotvec() for j in range(local.shape[1])]
+    )
+
+
+@torch.no_grad()
+def posterior_means(
+    model: A2mModel, prepared: PreparedClips, indices: np.ndarray, batch: int = 256
+) -> tuple[np.ndarray, np.ndarray]:
+    """Posterior-mean sequences (N, T·Z) of the canonical centre windows of clips ``indices`` and those
+    windows' root positions at their last real frame (N, 3)."""
+    device = next(model.parameters()).device
+    means, ends = [], []
+    for lo in range(0, len(indices), batch):
+        windows = crop_windows(prepared, indices[lo : lo + batch], None)
+        joints = torch.from_numpy(np.ascontiguousarray(windows.joints, np.float32)).to(device)
+        actions = torch.from_numpy(np.asarray(windows.actions, np.int64)).to(device)
+        means.append(model.posterior_means(joints, actions).flatten(1).cpu().numpy())
+        ends.append(windows.ends)
+    return np.concatenate(means), np.concatenate(ends)
+
+
+def fit_code_space(model: A2mModel, prepared: PreparedClips, train_idx: np.ndarray) -> None:
+    """Set the model's code space: the first ``code_dim`` principal components of the posterior-mean
+    sequences of the training clips (scikit-learn's PCA; rows past the number of clips stay zero)."""
+    means, _ = posterior_means(model, prepared, train_idx)
+    dim = model.config.code_dim
+    pca = PCA(n_components=min(dim, *means.shape), svd_solver="full").fit(means)
+    basis = np.zeros((dim, means.shape[1]), dtype=np.float32)  # fewer clips than dims: unused dims are 0
+    basis[: len(pca.components_)] = pca.components_
+    model.set_code_space(pca.mean_, basis)
+
+
+def a2m_bank(
+    model: A2mModel,
+    prepared: PreparedClips,
+    val_idx: np.ndarray,
+    *,
+    projections: Sequence[str] = ("pca", "tsne", "umap"),
+    k_range: tuple[int, int] = (3, 11),
+    seed: int = 0,
+) -> LatentBank:
+    """The latent bank of every clip: the code of its posterior-mean sequence, modes and maps."""
+    everything = np.arange(prepared.n_clips)
+    means, ends = posterior_means(model, prepared, everything)
+    with torch.no_grad():
+        codes = model.z_to_codes(torch.from_numpy(means).to(model.code_mean)).cpu().numpy()
+    in_val = np.isin(everything, val_idx)
+    metas = [m | {"split": "val" if v else "train"} for m, v in zip(prepared.meta, in_val, strict=True)]
+    return build_bank(
+        codes,
+        prepared.actions,
+        ends,
+        prepared.sources,
+        metas,
+        prepared.action_names,
+        k_range=k_range,
+        projections=tuple(projections),
+        seed=seed,
+    )
 
 
 def train_a2m(
@@ -57,13 +129,17 @@ def train_a2m(
     progress: Callable[[TrainProgress], None] | None = None,
     cancel: Callable[[], bool] | None = None,
     checkpoint_every: int = 10,
+    bank_projections: Sequence[str] = ("pca", "tsne", "umap"),
+    bank_k_range: tuple[int, int] = (3, 11),
 ) -> TrainResult:
     """Train an A2M baseline on ``clips`` and write its model folder ``out_dir``.
 
     Same windows, clip split (``val_fraction``, ``seed``) and budget (``epochs`` × ``epoch_size``
     class-balanced windows) as ``engine.train.loop.train``. Each batch is teacher-forced with probability
-    ``config.tf_rate``, else the generator runs on its own outputs. The folder gets model.safetensors,
-    model.json, train_log.csv and checkpoints/last.pt; ``resume`` and ``cancel`` behave as in ``train``.
+    ``config.tf_rate``, else the generator runs on its own outputs. A "lie" model runs on the data's
+    skeleton and starts at its mean pose. The folder gets model.safetensors, model.json, train_log.csv,
+    checkpoints/last.pt and, with a code space, latent_bank.npz (``bank_projections`` maps, modes over
+    ``bank_k_range``); ``resume`` and ``cancel`` behave as in ``train``.
     """
     out = Path(out_dir)
     dev = resolve_device(device)
@@ -78,7 +154,11 @@ def train_a2m(
     sampler = PairSampler(prepared.actions, train_idx)
     validation = crop_windows(prepared, val_idx, None) if len(val_idx) else None
 
-    model = A2mModel(config, seed=seed).to(dev)
+    model = A2mModel(config, seed=seed)
+    if config.pose_rep == "lie":
+        model.set_skeleton(prepared.skeleton)
+        model.set_rest_bias(rest_rotations(prepared, train_idx))
+    model = model.to(dev)
     optimizer = torch.optim.Adam(model.parameters(), lr=config.lr, weight_decay=config.weight_decay)
     rng = np.random.default_rng(seed)
     tgen = torch.Generator(dev).manual_seed(seed)
@@ -161,6 +241,8 @@ def train_a2m(
 
     write_log(out / LOG_FILE, rows)
     model.eval()
+    if config.code_dim:
+        fit_code_space(model, prepared, train_idx)
     provenance = {
         "arch": "a2m",
         "data_fingerprint": fingerprint,
@@ -186,6 +268,11 @@ def train_a2m(
     write_model_folder(
         out, model, config.to_dict(), prepared.skeleton, prepared.action_names, provenance, root_height, "a2m"
     )
+    if config.code_dim:
+        bank = a2m_bank(
+            model, prepared, val_idx, projections=bank_projections, k_range=bank_k_range, seed=seed
+        )
+        save_bank(out, bank)
     return TrainResult(
         model_dir=out,
         epochs=config.epochs,

@@ -1,4 +1,5 @@
-"""Action2Motion baseline: training, prior sampling, folder I/O, evaluation and the comparison table."""
+"""Action2Motion: Lie poses through FK, training, prior sampling, the code space and bank, folder I/O (old
+baseline folders included), bone-length control, evaluation and the comparison table."""
 
 from __future__ import annotations
 
@@ -9,19 +10,23 @@ from pathlib import Path
 import numpy as np
 import pytest
 import torch
+from scipy.spatial.transform import Rotation
 
 from bench.compare import ROWS, results_markdown
 from engine.errors import ConfigError, ModelFormatError
-from engine.generators.a2m import generate_a2m, load_a2m
+from engine.generators import SampleRequest, open_generator
+from engine.generators.a2m import decode_a2m, encode_a2m, generate_a2m, load_a2m
 from engine.metrics.a2m_eval import NOT_APPLICABLE, evaluate_a2m
 from engine.metrics.classifier import Classifier, train_classifier
 from engine.metrics.evaluate import evaluate
 from engine.metrics.physics import physics_metrics
-from engine.model.a2m import A2mModel
+from engine.model.a2m import A2mConfig, A2mModel, so3_exp
 from engine.modelio import load_model, write_model_folder
+from engine.motion.ik import joints_to_rotations
 from engine.motion.motion import Motion
-from engine.train.a2m_loop import train_a2m
-from tests.fixtures.procedural import PROCEDURAL_ACTIONS
+from engine.train.a2m_loop import posterior_means, train_a2m
+from engine.train.windows import prepare_clips
+from tests.fixtures.procedural import PROCEDURAL_ACTIONS, procedural_skeleton
 from tests.fixtures.tiny_model import single_thread, tiny_a2m_config
 
 
@@ -45,44 +50,149 @@ def test_training_lowers_the_loss(a2m_dir: Path) -> None:
     first, last = rows[0], rows[-1]
     assert float(last["train_recon"]) < 0.5 * float(first["train_recon"])
     assert float(last["val_recon"]) < 0.5 * float(first["val_recon"])
+    assert float(last["train_trajectory"]) < float(first["train_trajectory"])
     meta = json.loads((a2m_dir / "model.json").read_text())
     assert meta["arch"] == "a2m"
     assert meta["provenance"]["windows_seen"] == 8 * 64
 
 
+def test_so3_exp_matches_scipy() -> None:
+    w = np.random.default_rng(0).normal(size=(200, 3)) * 1.5
+    w[:3] *= 1e-5  # the small-angle branch
+    np.testing.assert_allclose(
+        so3_exp(torch.tensor(w)).numpy(), Rotation.from_rotvec(w).as_matrix(), atol=1e-12
+    )
+
+
+def test_lie_outputs_are_the_datas_skeleton_posed_by_forward_kinematics(
+    procedural_clips: list[Motion],
+) -> None:
+    clip = procedural_clips[5]
+    _, local, root, _ = joints_to_rotations(clip)  # an independent solve: scipy IK on the same skeleton
+    model = A2mModel(tiny_a2m_config(), seed=0)
+    model.set_skeleton(clip.skeleton)
+    w = Rotation.from_quat(local.reshape(-1, 4), scalar_first=True).as_rotvec().reshape(len(clip.joints), -1)
+    params = torch.tensor(np.concatenate([w, root], 1), dtype=torch.float32)[None]
+    joints = model._pose(params).reshape(len(clip.joints), -1, 3).numpy()
+    np.testing.assert_allclose(joints, clip.joints, atol=2e-4)
+    bones = np.linalg.norm(joints[:, 1:] - joints[:, clip.skeleton.parents[1:]], axis=-1)
+    np.testing.assert_allclose(
+        bones, np.broadcast_to(clip.skeleton.bone_lengths()[1:], bones.shape), atol=1e-5
+    )
+
+
 def test_teacher_forced_pass_matches_a_step_by_step_loop(torch_single_thread: None) -> None:
-    model = A2mModel(tiny_a2m_config(), seed=3).eval()
-    gen = torch.Generator().manual_seed(0)
-    joints = torch.randn(2, 60, 11, 3, generator=gen)
-    actions = torch.tensor([0, 2])
-    with torch.no_grad():
-        out = model(joints, actions, teacher=True, generator=None)
-        cond = model._condition(actions)
-        x = joints.reshape(2, 60, -1)
-        h_q = h_p = h_g = None
-        prev = torch.zeros(2, 1, 33)
-        for t in range(60):
-            c = cond[:, t : t + 1]
-            mu_q, _, h_q = model.posterior(torch.cat([x[:, t : t + 1], c], 2), h_q)
-            mu_p, _, h_p = model.prior(torch.cat([prev, c], 2), h_p)
-            pose, h_g = model.generator(torch.cat([prev, c, mu_q], 2), h_g)
-            torch.testing.assert_close(out.mu_p[:, t : t + 1], mu_p, atol=1e-5, rtol=1e-5)
-            torch.testing.assert_close(out.joints[:, t].reshape(2, 1, -1), pose, atol=1e-5, rtol=1e-5)
-            prev = x[:, t : t + 1]
+    for rep in ("lie", "joints"):
+        model = A2mModel(tiny_a2m_config(pose_rep=rep), seed=3).eval()
+        model.set_skeleton(procedural_skeleton()) if rep == "lie" else None
+        gen = torch.Generator().manual_seed(0)
+        joints = torch.randn(2, 60, 11, 3, generator=gen)
+        actions = torch.tensor([0, 2])
+        with torch.no_grad():
+            out = model(joints, actions, teacher=True, generator=None)
+            cond = model._condition(actions)
+            x = joints.reshape(2, 60, -1)
+            h_q = h_p = h_g = None
+            prev = torch.zeros(2, 1, 33)
+            for t in range(60):
+                c = cond[:, t : t + 1]
+                mu_q, _, h_q = model.posterior(torch.cat([x[:, t : t + 1], c], 2), h_q)
+                mu_p, _, h_p = model.prior(torch.cat([prev, c], 2), h_p)
+                params, h_g = model.generator(torch.cat([prev, c, mu_q], 2), h_g)
+                pose = model._pose(params)
+                torch.testing.assert_close(out.mu_p[:, t : t + 1], mu_p, atol=1e-5, rtol=1e-5)
+                torch.testing.assert_close(out.joints[:, t].reshape(2, 1, -1), pose, atol=1e-5, rtol=1e-5)
+                prev = x[:, t : t + 1]
 
 
 def test_generation_is_deterministic_per_seed(a2m_dir: Path, torch_single_thread: None) -> None:
     loaded = load_a2m(a2m_dir)
-    first = generate_a2m(loaded, "wave", 3, 7)
-    assert first.shape == (3, 60, 11, 3) and first.dtype == np.float32
+    first, z = generate_a2m(loaded, "wave", 3, 7)
+    assert first.shape == (3, 60, 11, 3) and first.dtype == np.float32 and z.shape == (3, 60, 8)
     assert np.all(np.isfinite(first))
-    np.testing.assert_array_equal(first, generate_a2m(loaded, 1, 3, torch.Generator().manual_seed(7)))
-    assert not np.allclose(first, generate_a2m(loaded, "wave", 3, 8))
+    np.testing.assert_array_equal(first, generate_a2m(loaded, 1, 3, torch.Generator().manual_seed(7))[0])
+    assert not np.allclose(first, generate_a2m(loaded, "wave", 3, 8)[0])
     assert not np.allclose(first[0], first[1])  # the prior is sampled, not its mean
     with pytest.raises(ConfigError):
         generate_a2m(loaded, "dance", 1, 0)
     with pytest.raises(ConfigError):
         generate_a2m(loaded, 3, 1, 0)
+
+
+def test_prior_samples_keep_their_z_and_land_on_the_map(a2m_dir: Path, torch_single_thread: None) -> None:
+    generator = open_generator(a2m_dir)
+    samples = generator.sample(SampleRequest("wave", 4, 9))
+    joints, z = generate_a2m(generator.loaded, "wave", 4, 9)
+    model = generator.loaded.model
+    with torch.no_grad():
+        expected = model.z_to_codes(torch.from_numpy(z)).numpy()
+        z_again = model.codes_to_z(torch.from_numpy(expected)).numpy()
+    for s, j, code in zip(samples, joints, expected, strict=True):
+        np.testing.assert_array_equal(s.code, code)
+        np.testing.assert_allclose(s.motion.joints[..., 0], j[..., 0])
+    # the code is the z sequence's orthogonal projection: what it leaves out is orthogonal to the basis
+    residual = (z - z_again).reshape(4, -1)
+    np.testing.assert_allclose(residual @ model.code_basis.numpy().T, 0.0, atol=1e-4)
+    points = generator.bank.projections["pca"].transform(np.stack([s.code for s in samples]))
+    assert points.shape == (4, 2) and np.all(np.isfinite(points))
+
+
+def test_bank_holds_each_clips_posterior_mean_code(
+    a2m_dir: Path, procedural_clips: list[Motion], torch_single_thread: None
+) -> None:
+    loaded = load_a2m(a2m_dir)
+    bank = loaded.bank
+    assert bank is not None and bank.codes.shape == (len(procedural_clips), 6)
+    prepared = prepare_clips(procedural_clips, PROCEDURAL_ACTIONS, loaded.fps, loaded.window)
+    means, ends = posterior_means(loaded.model, prepared, np.arange(len(procedural_clips)))
+    with torch.no_grad():
+        codes = loaded.model.z_to_codes(torch.from_numpy(means)).numpy()
+    np.testing.assert_allclose(bank.codes, codes, atol=1e-5)
+    np.testing.assert_allclose(bank.ends, ends, atol=1e-6)
+    assert {m["split"] for m in bank.meta} == {"train", "val"}
+    clip = procedural_clips[7]
+    np.testing.assert_allclose(encode_a2m(loaded, clip, clip.action), bank.codes[7], atol=1e-5)
+    assert set(bank.modes) == {0, 1, 2}
+    # a training clip's code decodes to a motion of that clip's kind: nearer it than the other actions' clips
+    motion = decode_a2m(loaded, bank.codes[7], clip.action)[0]
+    assert motion.shape == (60, 11, 3) and np.all(np.isfinite(motion))
+
+
+def test_mode_samples_are_their_codes_decoded(a2m_dir: Path, torch_single_thread: None) -> None:
+    generator = open_generator(a2m_dir)
+    for strategy in ("mode_preserving", "conventional"):
+        samples = generator.sample(SampleRequest("walk", 3, 2, strategy=strategy))
+        motions = generator.decode(np.stack([s.code for s in samples]), "walk")
+        for s, m in zip(samples, motions, strict=True):
+            np.testing.assert_array_equal(s.motion.joints, m.joints)
+    one = generator.sample(SampleRequest("walk", 2, 2, mode=0))
+    assert [s.mode for s in one] == [0, 0]
+    strip = generator.interpolate(one[0].code, one[1].code, "walk", 4)
+    np.testing.assert_array_equal(strip[0].motion.joints, one[0].motion.joints)
+    np.testing.assert_array_equal(strip[-1].motion.joints, one[1].motion.joints)
+    with pytest.raises(ConfigError, match="unknown strategy"):
+        generator.sample(SampleRequest("walk", 1, 0, strategy="greedy"))
+
+
+def test_bone_scale_changes_the_body_not_the_motion(a2m_dir: Path, torch_single_thread: None) -> None:
+    loaded = load_a2m(a2m_dir)
+    base, _ = generate_a2m(loaded, "walk", 2, 5)
+    tall, _ = generate_a2m(loaded, "walk", 2, 5, bone_scale=1.25)
+    parents = loaded.skeleton.parents
+    lengths = loaded.skeleton.bone_lengths()[1:]
+    for joints, factor in ((base, 1.0), (tall, 1.25)):
+        bones = np.linalg.norm(joints[:, :, 1:] - joints[:, :, parents[1:]], axis=-1)
+        np.testing.assert_allclose(bones, np.broadcast_to(factor * lengths, bones.shape), atol=1e-5)
+    root = loaded.skeleton.root
+    np.testing.assert_array_equal(base[:, :, root], tall[:, :, root])  # the same rollout, a larger body
+    arms = np.ones(loaded.skeleton.n_joints, np.float32)
+    arms[3] = 2.0
+    longer, _ = generate_a2m(loaded, "walk", 2, 5, bone_scale=arms)
+    arm = np.linalg.norm(longer[:, :, 3] - longer[:, :, parents[3]], axis=-1)
+    np.testing.assert_allclose(arm, 2.0 * lengths[2], atol=1e-5)
+    for bad in (0.0, -1.0, np.ones(3), float("nan")):
+        with pytest.raises(ConfigError, match="bone_scale"):
+            generate_a2m(loaded, "walk", 1, 0, bone_scale=bad)
 
 
 def test_save_load_generate_identical(a2m_dir: Path, tmp_path: Path, torch_single_thread: None) -> None:
@@ -99,17 +209,39 @@ def test_save_load_generate_identical(a2m_dir: Path, tmp_path: Path, torch_singl
     )
     again = load_a2m(tmp_path)
     assert again.config == loaded.config and again.action_names == loaded.action_names
-    np.testing.assert_array_equal(generate_a2m(loaded, 2, 4, 11), generate_a2m(again, 2, 4, 11))
+    np.testing.assert_array_equal(generate_a2m(loaded, 2, 4, 11)[0], generate_a2m(again, 2, 4, 11)[0])
+
+
+def test_old_baseline_folders_load_as_the_joint_position_model(
+    tiny_a2m_old_dir: Path, torch_single_thread: None
+) -> None:
+    loaded = load_a2m(tiny_a2m_old_dir)
+    assert "pose_rep" not in json.loads((tiny_a2m_old_dir / "model.json").read_text())["config"]
+    assert (loaded.config.pose_rep, loaded.config.code_dim, loaded.config.trajectory_weight) == (
+        "joints",
+        0,
+        0.0,
+    )
+    assert loaded.bank is None
+    generator = open_generator(tiny_a2m_old_dir)
+    assert generator.capabilities == {"sample"}
+    joints, _ = generate_a2m(loaded, "walk", 2, 3)
+    assert joints.shape == (2, 60, 11, 3) and np.all(np.isfinite(joints))
+    with pytest.raises(ConfigError, match="no bones to scale"):
+        generate_a2m(loaded, "walk", 1, 0, bone_scale=1.1)
+    assert A2mConfig.from_dict(loaded.config.to_dict()) == loaded.config
 
 
 def _copy(src: Path, dst: Path) -> Path:
     dst.mkdir()
-    for name in ("model.json", "model.safetensors"):
+    for name in ("model.json", "model.safetensors", "latent_bank.npz"):
         (dst / name).write_bytes((src / name).read_bytes())
     return dst
 
 
 def test_loading_is_strict(a2m_dir: Path, tiny_model_dir: Path, tmp_path: Path) -> None:
+    with pytest.raises(ModelFormatError, match="pose_rep"):
+        A2mConfig.from_dict(tiny_a2m_config().to_dict() | {"pose_rep": "quaternions"})
     with pytest.raises(ModelFormatError, match="not 'a2m'"):
         load_a2m(tiny_model_dir)  # an ODMO folder
     with pytest.raises(ModelFormatError):
@@ -124,6 +256,7 @@ def test_loading_is_strict(a2m_dir: Path, tiny_model_dir: Path, tmp_path: Path) 
         load_a2m(corrupt)
     for name, change in {
         "shape": lambda m: m["config"].update(hidden=48),
+        "lie": lambda m: m["config"].update(pose_rep="joints"),  # the weights have Lie outputs
         "newer": lambda m: m.update(format_version=99),
         "unknown": lambda m: m["config"].update(dropout=0.1),
         "actions": lambda m: m.update(action_names=["walk"]),

@@ -29,10 +29,13 @@ from engine.motion.npz import read_npz
 pytestmark = pytest.mark.usefixtures("torch_single_thread")
 
 
-@pytest.fixture(params=["odmo", "a2m"])
+FOLDERS = {"odmo": "tiny_model_dir", "a2m": "tiny_a2m_dir", "a2m-baseline": "tiny_a2m_old_dir"}
+
+
+@pytest.fixture(params=sorted(FOLDERS))
 def folder(request: pytest.FixtureRequest) -> Path:
-    """The folder of a tiny trained model of each kind."""
-    return request.getfixturevalue({"odmo": "tiny_model_dir", "a2m": "tiny_a2m_dir"}[request.param])
+    """The folder of a tiny trained model of each kind (and of the old A2M baseline, which only samples)."""
+    return request.getfixturevalue(FOLDERS[request.param])
 
 
 def test_every_shipped_kind_is_registered() -> None:
@@ -139,15 +142,25 @@ def test_declared_capabilities_work_and_the_others_are_refused(
         z = np.zeros((2, generator.code_space.size), dtype=np.float32)
         motions = generator.decode(z, action)
         assert len(motions) == 2 and np.array_equal(motions[0].joints, motions[1].joints)
+        assert motions[0].joints.shape == (generator.window, generator.skeleton.n_joints, 3)
     else:
         with pytest.raises(CapabilityError, match="cannot decode a given latent code"):
             generator.decode(np.zeros((1, generator.code_space.size)), action)
+    if "bank" in generator.capabilities:
+        assert bank is not None and bank.codes.shape[1] == generator.code_space.size
+        assert bank.action_names == generator.action_names
+        pca = bank.projections["pca"]
+        np.testing.assert_allclose(pca.transform(bank.codes[:5]), pca.embedding_[:5], atol=1e-4)
+    else:
+        assert bank is None
 
 
-def test_require_names_what_the_model_can_do(tiny_a2m_dir: Path) -> None:
-    generator = open_generator(tiny_a2m_dir)
+def test_require_names_what_the_model_can_do(tiny_a2m_old_dir: Path, tiny_a2m_dir: Path) -> None:
+    generator = open_generator(tiny_a2m_old_dir)
     with pytest.raises(CapabilityError, match=r"cannot encode a motion into a code; it can sample motions$"):
         require(generator, "encode")
+    with pytest.raises(CapabilityError, match=r"cannot set where the motion ends; it can sample motions, "):
+        require(open_generator(tiny_a2m_dir), "end")
     assert main(["bank", "--model", str(tiny_a2m_dir), "--data", str(tiny_a2m_dir)]) == 1
 
 
