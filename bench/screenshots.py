@@ -88,7 +88,7 @@ def main() -> int:
     window.resize(*SIZE)
     window.show()
     _settle(explorer, 2.0)
-    walk = c.loaded.action_names.index("walk") if "walk" in c.loaded.action_names else 0
+    walk = c.generator.action_names.index("walk") if "walk" in c.generator.action_names else 0
     c.state.focus_action = walk
     first, second = _two_modes(explorer, walk)
 
@@ -123,7 +123,7 @@ def main() -> int:
     c.state.projection = "pca"
     c.state.color_by = "action"
     _settle(explorer)
-    names = c.loaded.action_names
+    names = c.generator.action_names
     run = names.index("run") if "run" in names else min(1, len(names) - 1)
     walk_code, run_code = _two_modes(explorer, walk)[0], _two_modes(explorer, run)[0]
     window.layout_combo.setCurrentIndex(window.layout_combo.findData("sequence"))

@@ -18,6 +18,7 @@ from PySide6.QtWidgets import QFileDialog
 
 from engine.errors import ConfigError, ModelFormatError, OdmoError
 from engine.motion.motion import Motion
+from explorer.decoding import decode_one, full_end
 from explorer.main_window import MainWindow
 from explorer.map_layers import (
     META_PREFIX,
@@ -40,10 +41,10 @@ from explorer.workers import Cancel, LatestRunner, Progress, TaskRunner
 
 if TYPE_CHECKING:
     from engine import generate
+    from engine.generators.base import Generator
     from engine.latent.bank import LatentBank
     from engine.latent.modes import ModeModel
     from engine.latent.projection import Projection
-    from engine.modelio import LoadedModel
 
 log = logging.getLogger(__name__)
 
@@ -170,8 +171,8 @@ class Controller(QObject):
     # -- helpers -------------------------------------------------------------------------------------
 
     @property
-    def loaded(self) -> LoadedModel:
-        """The loaded model; ConfigError when none is."""
+    def generator(self) -> Generator:
+        """The loaded generator, of any kind; ConfigError when none is."""
         if self.state.model is None:
             raise ConfigError("no model is loaded (File ▸ Open model folder…)")
         return self.state.model
@@ -179,10 +180,23 @@ class Controller(QObject):
     @property
     def bank(self) -> LatentBank:
         """The loaded model's latent bank."""
-        bank = self.loaded.bank
+        bank = self.generator.bank
         if bank is None:
-            raise ModelFormatError(f"{self.loaded.path}: the model has no latent bank (run `odmo bank`)")
+            raise ModelFormatError(f"{self.generator.path}: the model has no latent bank (run `odmo bank`)")
         return bank
+
+    def can(self, capability: str) -> bool:
+        """True when the loaded generator declares ``capability``."""
+        return self.state.model is not None and capability in self.generator.capabilities
+
+    def refuse(self, capability: str, asked: str | None = None) -> bool:
+        """Say in the status bar that the loaded kind lacks ``capability``; True when it does."""
+        if self.can(capability):
+            return False
+        from engine.generators.base import refusal
+
+        self.window.show_status(str(refusal(self.generator, capability, asked)))
+        return True
 
     @property
     def projection(self) -> Projection | None:
@@ -261,17 +275,17 @@ class Controller(QObject):
         path = Path(path)
         self.show_preview(path)
 
-        def job(progress: Progress, _cancel: Cancel) -> LoadedModel:
+        def job(progress: Progress, _cancel: Cancel) -> Generator:
             progress(f"Loading {path.name}", 0.1)
-            from engine.modelio import load_model
+            from engine.generators import open_generator
 
             progress(f"Loading {path.name}", 0.5)
-            loaded = load_model(path)
+            generator = open_generator(path)
             import engine.generate  # noqa: F401  (loaded here, off the GUI thread, before the first decode)
 
-            if loaded.bank is None:
+            if generator.bank is None:
                 raise ModelFormatError(f"{path}: the model has no latent bank (latent_bank.npz)")
-            return loaded
+            return generator
 
         title = f"Loading model {path.name}"
         self.load_error = ""
@@ -285,7 +299,7 @@ class Controller(QObject):
             self._preview, self._drawn = None, None
         self.report_error("Cannot open the model", exc)
 
-    def _model_ready(self, loaded: LoadedModel) -> None:
+    def _model_ready(self, loaded: Generator) -> None:
         """Show a loaded model; a bank the app cannot show is reported like a failed load."""
         try:
             self._show_model(loaded)
@@ -294,7 +308,7 @@ class Controller(QObject):
             self.state.model = None
             self._model_failed(exc)
 
-    def _show_model(self, loaded: LoadedModel) -> None:
+    def _show_model(self, loaded: Generator) -> None:
         self._projections = {k: v for k, v in loaded.bank.projections.items() if v.embedding_ is not None}
         self._energy = None
         self._weights = {}
@@ -335,7 +349,7 @@ class Controller(QObject):
 
         self._run_task(f"Loading dataset {path.name}", job, done)
 
-    def _model_changed(self, loaded: LoadedModel | None) -> None:
+    def _model_changed(self, loaded: Generator | None) -> None:
         w = self.window
         if loaded is None:
             return
@@ -357,7 +371,8 @@ class Controller(QObject):
         w.setWindowTitle(f"ODMO Explorer — {loaded.path.name}")
         w.show_status(
             f"Model {loaded.path.name}: {len(bank.codes)} bank codes, {len(names)} actions, "
-            f"latent dim {loaded.config.latent_dim}. Click a point to decode it."
+            f"{loaded.kind} codes {loaded.code_space.name} of size {loaded.code_space.size}. "
+            "Click a point to decode it."
         )
         self.modelLoaded.emit(loaded)
 
@@ -454,11 +469,9 @@ class Controller(QObject):
         self._redraw_map(self.state.embedding)
 
     def _compute_energy(self) -> None:
-        loaded, bank = self.loaded, self.bank
+        loaded, bank, with_end = self.generator, self.bank, self.can("end")
 
         def job(progress: Progress, cancel: Cancel) -> np.ndarray:
-            from engine import generate
-
             energy = np.zeros(len(bank.codes))
             done, chunk = 0, 256
             for action in range(len(bank.action_names)):
@@ -467,9 +480,8 @@ class Controller(QObject):
                     if cancel():
                         return energy
                     part = idx[start : start + chunk]
-                    motions = generate.decode_batch(
-                        loaded, bank.codes[part].copy(), action, bank.ends[part].copy()
-                    )
+                    ends = bank.ends[part].copy() if with_end else None
+                    motions = loaded.decode(bank.codes[part].copy(), bank.action_names[action], ends)
                     energy[part] = motion_energy(np.stack([m.joints for m in motions]), loaded.fps)
                     done += len(part)
                     progress("Decoding bank codes for motion energy", done / len(bank.codes))
@@ -515,7 +527,7 @@ class Controller(QObject):
         if extra is None:
             self.window.latent_map.set_extra_points(None)
             return
-        colors = category_colors(len(self.loaded.action_names))[extra.actions]
+        colors = category_colors(len(self.generator.action_names))[extra.actions]
         self.window.latent_map.set_extra_points(extra.xy, colors)
 
     def _reproject_extra(self) -> None:
@@ -530,7 +542,7 @@ class Controller(QObject):
         if self.state.model is None:
             return
         modes = self.bank.modes.get(action)
-        name = self.loaded.action_names[action]
+        name = self.generator.action_names[action]
         note = mode_note(modes, len(self.bank.indices_of(action)))
         if modes is None:
             w.mode_panel.set_action_modes(name, [], [], 0, [], [], note)
@@ -599,7 +611,7 @@ class Controller(QObject):
         self._decode_bank([int(index)], with_real=True)
 
     def _decode_bank(self, indices: Sequence[int], with_real: bool = False, note: str = "") -> None:
-        bank, real = self.bank, self._real
+        bank, real, generator = self.bank, self._real, self.generator
 
         def job() -> tuple[Decoded, ...]:
             items = []
@@ -607,16 +619,14 @@ class Controller(QObject):
             for i in indices:
                 code, action, end = self.bank_item(i)
                 mode = None if labels[i] < 0 else int(labels[i])
-                motion = decode_one(self.loaded, code, action, end, mode)
+                motion = decode_one(generator, code, action, end, mode)
                 name = f"#{i} {bank.sources[i]}"
                 items.append(Decoded(motion, f"{name} (decoded)", code, action, end, mode, None, i, note))
                 source = str(bank.sources[i])  # the bank may name the clip from another root folder
                 clip = real.get(source, real.get(Path(source).stem)) if with_real else None
                 if clip is not None:  # the window the code encodes, placed and turned as the decode is
-                    from engine.generate import bank_window
-
                     start = bank.meta[i].get("window_start") if "window_stride" in bank.meta[i] else None
-                    window = bank_window(self.loaded, clip, start)
+                    window = generator.real_window(clip, start)
                     items.append(Decoded(window, f"{name} (real clip)", None, action))
             return tuple(items)
 
@@ -653,13 +663,13 @@ class Controller(QObject):
         xy: np.ndarray | None = None,
     ) -> int:
         """Decode ``code`` (or, when None, the inverse projection of map point ``xy``) in the worker."""
-        loaded, bank, projection = self.loaded, self.bank, self.projection
+        loaded, bank, projection = self.generator, self.bank, self.projection
 
         def job() -> tuple[Decoded, ...]:
             nonlocal code
             if code is None:
                 code = projection.inverse_transform(np.asarray(xy, np.float64)[None])[0].astype(np.float32)
-            e = _full_end(loaded, code, action, end)
+            e = full_end(loaded, code, action, end)
             modes = bank.modes.get(action)
             mode = None if modes is None else int(modes.predict(code[None])[0])
             motion = decode_one(loaded, code, action, e, mode)
@@ -736,21 +746,21 @@ class Controller(QObject):
         Between two actions (``action_b`` given and different) the engine's cross-action rule is used
         and the status bar says so: each step is decoded as the likelier of the two actions.
         """
-        loaded, steps = self.loaded, self.window.steps_spin.value()
+        loaded, steps = self.generator, self.window.steps_spin.value()
         across = action_b is not None and action_b != action
         names = loaded.action_names
+        if self.refuse("interpolate_across" if across else "interpolate"):
+            return
+        ends = {"end_a": end_a, "end_b": end_b} if self.can("end") else {}
 
         def job() -> tuple[Decoded, ...]:
             from engine import generate
 
             if across:
-                samples = generate.interpolate_across(
-                    loaded, code_a, action, code_b, action_b, steps, end_a=end_a, end_b=end_b
-                )
+                pair = (code_a, names[action], code_b, names[action_b])
+                samples = loaded.interpolate_across(*pair, steps, **ends)
             else:
-                samples = generate.interpolate(
-                    loaded, code_a, code_b, action, steps, end_a=end_a, end_b=end_b
-                )
+                samples = loaded.interpolate(code_a, code_b, names[action], steps, **ends)
             note = f"{names[action]} → {names[action_b]}: {generate.ACROSS_RULE}" if across else ""
             return tuple(
                 Decoded(
@@ -839,12 +849,11 @@ class Controller(QObject):
         if summary is None:
             return
         centre, action, radius = summary
-        loaded, seed = self.loaded, self._new_seed()
-        from engine import generate
-
+        loaded, seed = self.generator, self._new_seed()
+        name = loaded.action_names[action]
         self._run_task(
             "Sampling variations",
-            lambda _p, _c: generate.neighbours(loaded, centre, action, VARIATIONS, radius, seed),
+            lambda _p, _c: loaded.vary(centre, name, VARIATIONS, radius, seed),
             lambda samples: self._samples_ready(samples, seed, "variation"),
         )
 
@@ -857,7 +866,7 @@ class Controller(QObject):
         from engine import generate
         from engine.latent.modes import ModeModel
 
-        loaded, bank = self.loaded, self.bank
+        loaded, bank, with_end = self.generator, self.bank, self.can("end")
         action = int(np.bincount(bank.actions[sel]).argmax())
         codes = bank.codes[sel].astype(np.float64)
         mean = codes.mean(axis=0)
@@ -878,8 +887,8 @@ class Controller(QObject):
 
         def job(_p: Progress, _c: Cancel) -> list[generate.Sample]:
             codes, _ = local.sample(LOCAL_MODE_SAMPLES, np.random.default_rng(seed), strategy="mode", mode=0)
-            motions = generate.decode_batch(loaded, codes, action)
-            ends = bank.end_location(codes, action)
+            motions = loaded.decode(codes, loaded.action_names[action])
+            ends = bank.end_location(codes, action) if with_end else [None] * len(codes)
             return [
                 generate.Sample(c.astype(np.float32), action, -1, e, m)
                 for c, e, m in zip(codes, ends, motions, strict=True)
@@ -889,17 +898,24 @@ class Controller(QObject):
 
     def sample(self, strategy: str, n: int, mode: int) -> None:
         """Draw ``n`` samples of the focused action (mode panel's Sample buttons) and show them."""
-        if self.state.model is None:
+        if self.state.model is None or self.refuse("sample"):
             return
-        loaded, action, seed = self.loaded, self.state.focus_action, self._new_seed()
+        loaded, action, seed = self.generator, self.state.focus_action, self._new_seed()
         strategy = PANEL_STRATEGIES.get(strategy, strategy)
         weights = self._weights.get(action) if strategy == "weights" else None
-        chosen = None if mode < 0 else int(mode)
+        from engine.generators.base import SampleRequest
+
+        request = SampleRequest(
+            loaded.action_names[action],
+            int(n),
+            seed,
+            strategy,
+            None if mode < 0 else int(mode),
+            weights=None if weights is None else tuple(float(w) for w in weights),
+        )
 
         def job(_p: Progress, _c: Cancel) -> list[generate.Sample]:
-            from engine import generate
-
-            return generate.sample(loaded, action, int(n), seed, strategy, chosen, weights)
+            return loaded.sample(request)
 
         self._run_task(
             f"Sampling {n} × {loaded.action_names[action]}",
@@ -914,7 +930,7 @@ class Controller(QObject):
         actions = np.array([s.action for s in samples], dtype=np.int64)
         xy = self.projection.transform(codes) if self.projection is not None else np.zeros((len(codes), 2))
         self.state.extra = ExtraPoints(codes, actions, xy)
-        names = self.loaded.action_names
+        names = self.generator.action_names
         self.state.shown = tuple(
             Decoded(
                 s.motion,
@@ -932,26 +948,24 @@ class Controller(QObject):
     def set_end(self, x: float, z: float) -> None:
         """Re-decode the current code with its end location moved to floor point (x, z)."""
         current = next((d for d in self.state.shown if d.code is not None), None)
-        if current is None:
+        if current is None or self.refuse("end"):
             return
         label = current.label.split(" · end (")[0]
         self._decode_code(current.code, current.action, f"{label} · end ({x:.2f}, {z:.2f})", np.array([x, z]))
 
     def follow_path(self, path: object) -> None:
         """Ask the engine for the code of the focused action whose root path follows ``path`` (K, 2)."""
-        if self.state.model is None:
+        if self.state.model is None or self.refuse("follow_path"):
             return
         shown = next((d for d in self.state.shown if d.code is not None), None)
-        loaded = self.loaded
+        loaded = self.generator
         action = shown.action if shown is not None else self.state.focus_action  # the motion playing
         path_xz = np.asarray(path, dtype=np.float64)
         length = float(np.linalg.norm(np.diff(path_xz, axis=0), axis=1).sum())
 
         def job(progress: Progress, _c: Cancel) -> generate.PathResult:
-            from engine import generate
-
             progress("Optimising a code to follow the path", 0.0)
-            return generate.follow_path(loaded, path_xz, action)
+            return loaded.follow_path(path_xz, loaded.action_names[action])
 
         def done(result: generate.PathResult) -> None:
             share = result.path_error_m / max(length, 1e-9)
@@ -977,7 +991,7 @@ class Controller(QObject):
         w = self.window
         if not shown:
             return
-        loaded = self.loaded
+        loaded = self.generator
         scene = build_scene(shown, self.state.layout, loaded.root_height, loaded.action_names)
         played = scene.played
         self._played = played
@@ -1089,16 +1103,6 @@ class Controller(QObject):
         self.tasks.shutdown()
 
 
-def decode_one(
-    loaded: LoadedModel, code: np.ndarray, action: int, end: np.ndarray | None, mode: int | None
-) -> Motion:
-    """``generate.decode`` with the end location passed as one row (a (3,) end gets broadcast read-only)."""
-    from engine import generate
-
-    rows = None if end is None else np.array(end, dtype=np.float32).reshape(1, -1)
-    return generate.decode(loaded, np.array(code, dtype=np.float32), action, rows, mode=mode)
-
-
 def _selection_note(picked: np.ndarray, selection: np.ndarray, bank: LatentBank) -> str:
     """'playing 12 of 57 selected (8 walk, 4 run), spread over the selection' (or '' for all)."""
     if len(picked) == len(selection):
@@ -1122,17 +1126,6 @@ def _skeleton_colors(shown: Sequence[Decoded], n: int, n_actions: int) -> np.nda
             rows[same] = shades(palette[int(action) % len(palette)], len(same))
     rows[[k for k, d in enumerate(shown) if d.code is None]] = (205, 205, 205)
     return rows[:n]
-
-
-def _full_end(
-    loaded: LoadedModel, code: np.ndarray, action: int, end: np.ndarray | None
-) -> np.ndarray | None:
-    """(3,) end location for ``code``: ``end`` as given when (3,), a floor point (x, z) at the bank's
-    predicted height when (2,), the bank's prediction when None."""
-    from engine import generate
-
-    rows = generate.resolve_ends(loaded, np.asarray(code, np.float32)[None], action, end)
-    return None if rows is None else rows[0].astype(np.float32)
 
 
 def padded_frames(motions: Sequence[Motion], length: int) -> np.ndarray:

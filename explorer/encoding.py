@@ -56,10 +56,9 @@ class ClipEncoder(QObject):
         if self.c.state.model is None:
             self.c.report_error("Cannot encode", "no model is loaded (File ▸ Open model folder…)")
             return
-        loaded, stride = self.c.loaded, self.c.window.stride_spin.value()
+        loaded, stride = self.c.generator, self.c.window.stride_spin.value()
 
         def job(progress, cancel) -> tuple[list[EncodedClip], list[str]]:
-            from engine import generate
             from engine.motion.motion import Motion
 
             done, failed = [], []
@@ -69,7 +68,7 @@ class ClipEncoder(QObject):
                 progress(f"Encoding {Path(name).name}", k / len(paths))
                 try:
                     motion = Motion.from_file(name)
-                    windows = generate.encode_windows(loaded, motion, stride)
+                    windows = loaded.encode_windows(motion, stride)
                     decoded = _decode_windows(loaded, Path(name), windows)
                 except (OdmoError, OSError, ValueError) as exc:
                     failed.append(f"{Path(name).name}: {exc}")
@@ -91,11 +90,11 @@ class ClipEncoder(QObject):
         shown = first.decoded[:MAX_PLAYED_WINDOWS]
         self.c.state.shown = tuple(shown)
         windows = sum(len(clip.windows.starts) for clip in done)
-        names = self.c.loaded.action_names
+        names = self.c.generator.action_names
         guesses = np.concatenate([clip.windows.actions for clip in done])
         tally = np.bincount(guesses[guesses >= 0], minlength=len(names))
         counts = ", ".join(f"{names[a]} ×{n}" for a, n in enumerate(tally) if n)
-        seconds = first.windows.stride / self.c.loaded.fps
+        seconds = first.windows.stride / self.c.generator.fps
         self.c.window.show_status(
             f"Encoded {len(done)} file(s) into {windows} windows (one every {first.windows.stride} frames = "
             f"{seconds:.2f} s): guessed {counts}. Marked ◆ on the map, joined in time order; "
@@ -123,7 +122,7 @@ class ClipEncoder(QObject):
 
 def _decode_windows(loaded, path: Path, windows: WindowCodes) -> list[Decoded]:
     """Decode each window's code as its guessed action, labelled with the file and the window."""
-    from engine import generate
+    from explorer.decoding import decode_one
 
     items = []
     count = len(windows.starts)
@@ -131,7 +130,7 @@ def _decode_windows(loaded, path: Path, windows: WindowCodes) -> list[Decoded]:
         zip(windows.codes, windows.ends, windows.starts, windows.actions, strict=True)
     ):
         action = int(max(action, 0))
-        motion = generate.decode(loaded, code, action, end[None])
+        motion = decode_one(loaded, code, action, end, None)
         label = f"{path.name} window {k + 1}/{count} @ frame {int(start)}"
         items.append(Decoded(motion, label, code.copy(), action, end.copy(), None))
     return items

@@ -57,7 +57,7 @@ class Exporter(QObject):
         w.export_timelapse_video_action.triggered.connect(lambda: self.ask("timelapse video"))
 
     def _model_path(self) -> str:
-        return str(self.c.loaded.path)
+        return str(self.c.generator.path)
 
     def export_shown(self, path: str | Path) -> list[Path] | None:
         """Write the motions shown in the viewport to ``path`` (BVH or NPZ; numbered when several)."""
@@ -67,11 +67,11 @@ class Exporter(QObject):
 
     def export_selection(self, path: str | Path) -> list[Path] | None:
         """Decode every selected bank code and write them to ``path`` (numbered files)."""
-        from explorer.controller import decode_one
+        from explorer.decoding import decode_one
 
         def run() -> list[Path]:
             c = self.c
-            loaded, bank = c.loaded, c.bank
+            loaded, bank = c.generator, c.bank
             if not c.state.selection:
                 raise ConfigError("nothing selected to export")
             labels = mode_labels(bank)

@@ -131,7 +131,7 @@ class Finder(QObject):
         bank = self.c.bank
         mark = new_bookmark(name, sel, [str(bank.sources[i]) for i in sel], self.marks)
         try:
-            path = save_bookmarks(self.c.loaded.path, [*self.marks, mark])
+            path = save_bookmarks(self.c.generator.path, [*self.marks, mark])
         except (OSError, OdmoError) as exc:
             self.c.report_error("Bookmark not saved", exc)
             return

@@ -12,7 +12,7 @@ from psygnal import evented
 from engine.motion.motion import Motion
 
 if TYPE_CHECKING:  # engine.modelio loads torch: the state is created before the model is
-    from engine.modelio import LoadedModel
+    from engine.generators.base import Generator
 
 PROJECTIONS = ("pca", "tsne", "umap")
 COLOR_BY = ("action", "mode", "motion energy")
@@ -84,7 +84,7 @@ class AppState:
 
     Parameters
     ----------
-    model : the loaded model (with its latent bank), or None.
+    model : the loaded generator, of any kind (with its latent bank), or None.
     data_dir : dataset folder whose real clips play beside reconstructions, or None.
     projection : name of the map's projection ("pca", "tsne", "umap").
     embedding : (N, 2) map positions of the bank codes under ``projection``, or None.
@@ -100,7 +100,7 @@ class AppState:
     busy : text of the long task in progress ("" when idle).
     """
 
-    model: LoadedModel | None = None
+    model: Generator | None = None
     data_dir: str | None = None
     projection: str = "pca"
     embedding: np.ndarray | None = None

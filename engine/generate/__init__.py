@@ -11,6 +11,7 @@ from engine.generate._decode import action_index, decode, decode_array, decode_b
 from engine.generate._encode import (
     WindowCodes,
     bank_window,
+    clip_windows,
     encode,
     encode_bank_windows,
     encode_clips,
@@ -19,7 +20,14 @@ from engine.generate._encode import (
     window_starts,
 )
 from engine.generate._path import PathResult, follow_path, resample_path
-from engine.generate._sampling import Sample, interpolate, interpolation_codes, neighbours, sample
+from engine.generate._sampling import (
+    Sample,
+    ball_codes,
+    interpolate,
+    interpolation_codes,
+    neighbours,
+    sample,
+)
 
 __all__ = [
     "ACROSS_RULE",
@@ -28,9 +36,11 @@ __all__ = [
     "WindowCodes",
     "action_index",
     "apply_transform",
+    "ball_codes",
     "bank_window",
     "chain_motions",
     "chain_transforms",
+    "clip_windows",
     "decode",
     "decode_array",
     "decode_batch",

@@ -125,16 +125,22 @@ def neighbours(
 
     Each neighbour's end location is predicted from its own code unless ``end`` is given.
     """
+    index = action_index(loaded, action)
+    generator, seed = _rng_and_seed(rng)
+    codes = ball_codes(as_codes(loaded, code)[0], n, radius, generator)
+    return _decode_samples(loaded, codes, index, _predicted_modes(loaded, codes, index), end, seed)
+
+
+def ball_codes(centre: np.ndarray, n: int, radius: float, rng: np.random.Generator | int) -> np.ndarray:
+    """(n, D) float32 codes drawn uniformly from the ball of ``radius`` around ``centre`` (D,)."""
     if n < 1 or not radius >= 0:
         raise ConfigError(f"need n >= 1 and radius >= 0, got n={n}, radius={radius}")
-    index = action_index(loaded, action)
-    centre = as_codes(loaded, code)[0]
-    generator, seed = _rng_and_seed(rng)
+    generator, _ = _rng_and_seed(rng)
+    centre = np.asarray(centre, dtype=np.float64).reshape(-1)
     direction = generator.standard_normal((n, centre.shape[0]))
     direction /= np.maximum(np.linalg.norm(direction, axis=1, keepdims=True), 1e-12)
     distance = radius * generator.random(n) ** (1.0 / centre.shape[0])
-    codes = (centre + direction * distance[:, None]).astype(np.float32)
-    return _decode_samples(loaded, codes, index, _predicted_modes(loaded, codes, index), end, seed)
+    return (centre + direction * distance[:, None]).astype(np.float32)
 
 
 def interpolation_codes(

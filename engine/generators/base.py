@@ -18,7 +18,7 @@ import numpy as np
 from engine.errors import ConfigError, ModelFormatError
 
 if TYPE_CHECKING:
-    from engine.generate import Sample
+    from engine.generate import Sample, WindowCodes
     from engine.latent.bank import LatentBank
     from engine.motion.motion import Motion
     from engine.motion.skeleton import Skeleton
@@ -30,6 +30,7 @@ CAPABILITIES: dict[str, str] = {
     "modes": "sample from discovered modes (mode-preserving, conventional, one mode)",
     "bank": "map its training codes (latent bank)",
     "interpolate": "interpolate between two codes",
+    "interpolate_across": "interpolate between codes of two actions",
     "encode": "encode a motion into a code",
     "end": "set where the motion ends",
     "follow_path": "follow a path on the floor",
@@ -59,7 +60,7 @@ class SampleRequest:
     """What to sample: ``n`` motions of ``action`` (None for an unconditional kind) from ``seed``.
 
     ``strategy`` and ``mode`` pick how codes are drawn (None: the kind's default); ``end`` (3,) is where
-    the motion should end, for kinds with the "end" capability.
+    the motion should end, for kinds with the "end" capability; ``weights`` weigh the action's modes.
     """
 
     action: str | None
@@ -68,6 +69,7 @@ class SampleRequest:
     strategy: str | None = None
     mode: int | None = None
     end: np.ndarray | None = None
+    weights: tuple[float, ...] | None = None  # per-mode weights, for the "weights" strategy
 
 
 class FolderGenerator:
@@ -99,6 +101,37 @@ class FolderGenerator:
     def action_names(self) -> list[str] | None:
         """The actions it is conditioned on (None for an unconditional kind)."""
         return list(self.loaded.action_names)
+
+    @property
+    def root_height(self) -> float:
+        """Height (m) of the root above the floor in the training clips: decoded motions stand at it."""
+        return float(self.loaded.root_height)
+
+    def real_window(self, clip: Motion, start: int | None = None) -> Motion:
+        """The window of a real ``clip`` a bank code encodes (from ``start``, or its centre), placed and
+        turned as decoded motions are, at display height."""
+        from engine.generate import bank_window
+
+        return bank_window(self, clip, start)
+
+    def vary(self, code: np.ndarray, action: str, n: int, radius: float, seed: int) -> list[Sample]:
+        """``n`` motions of codes drawn uniformly from the ball of ``radius`` around ``code`` ("decode")."""
+        from engine.generate import Sample, ball_codes
+
+        codes = ball_codes(code, n, radius, seed)
+        index = self.action_names.index(action)
+        motions = self.decode(codes, action, seed=seed)
+        return [Sample(c, index, -1, None, m) for c, m in zip(codes, motions, strict=True)]
+
+    def encode_windows(self, motion: Motion, stride: int) -> WindowCodes:
+        """``motion``'s T-frame windows every ``stride`` frames, each encoded ("encode")."""
+        from engine.generate import WindowCodes, clip_windows
+
+        starts, pieces = clip_windows(self, motion, stride)
+        found = [self.encode(piece) for piece in pieces]
+        codes = np.stack([code for code, _ in found]).astype(np.float32)
+        actions = np.array([-1 if a is None else a for _, a in found], dtype=np.int64)
+        return WindowCodes(codes, np.zeros((len(codes), 3), np.float32), starts, stride, actions)
 
 
 @runtime_checkable

@@ -8,14 +8,15 @@ from pathlib import Path
 
 import numpy as np
 
+from engine import generate
 from engine.errors import ConfigError
-from engine.generate import Sample, decode_batch, encode, interpolate, sample
+from engine.generate import PathResult, Sample, WindowCodes
 from engine.generators.base import CodeSpace, FolderGenerator, Generator, SampleRequest, require
 from engine.latent.bank import LatentBank
 from engine.modelio import LoadedModel, load_model
 from engine.motion.motion import Motion
 
-_ALWAYS = frozenset({"decode", "interpolate", "encode", "follow_path", "bank"})
+_ALWAYS = frozenset({"decode", "interpolate", "interpolate_across", "encode", "follow_path", "bank"})
 _WITH_BANK = frozenset({"sample", "modes"})
 
 
@@ -54,7 +55,10 @@ class OdmoGenerator(FolderGenerator):
         if end is not None:
             require(self, "end", "take an end location")
         chosen = "mode" if mode is not None else (request.strategy or "mode_preserving")
-        return sample(self.loaded, action, request.n, request.seed, strategy=chosen, mode=mode, end=end)
+        weights = None if request.weights is None else np.asarray(request.weights, dtype=np.float64)
+        return generate.sample(
+            self.loaded, action, request.n, request.seed, chosen, mode=mode, weights=weights, end=end
+        )
 
     def decode(
         self,
@@ -67,17 +71,57 @@ class OdmoGenerator(FolderGenerator):
         if actions is None or (not isinstance(actions, str) and len(set(actions)) != 1):
             raise ConfigError("ODMO decodes the codes of one action at a time; name it")
         action = actions if isinstance(actions, str) else next(iter(actions))
-        return decode_batch(self.loaded, codes, action, end, seed=seed)
+        return generate.decode_batch(self.loaded, codes, action, end, seed=seed)
 
     def encode(self, motion: Motion) -> tuple[np.ndarray, int | None]:
         """The posterior-mean code of ``motion`` and a guess of its action index."""
-        return encode(self.loaded, motion)
+        return generate.encode(self.loaded, motion)
+
+    def encode_windows(self, motion: Motion, stride: int) -> WindowCodes:
+        """``motion``'s windows every ``stride`` frames, encoded in one batch, with their end locations."""
+        return generate.encode_windows(self.loaded, motion, stride)
 
     def interpolate(
-        self, code_a: np.ndarray, code_b: np.ndarray, action: str, steps: int, method: str = "linear"
+        self,
+        code_a: np.ndarray,
+        code_b: np.ndarray,
+        action: str,
+        steps: int,
+        method: str = "linear",
+        end_a: np.ndarray | None = None,
+        end_b: np.ndarray | None = None,
     ) -> list[Sample]:
-        """``steps`` motions from ``code_a`` to ``code_b`` within ``action``."""
-        return interpolate(self.loaded, code_a, code_b, action, steps, method=method)
+        """``steps`` motions from ``code_a`` to ``code_b`` within ``action`` (ends blended linearly)."""
+        return generate.interpolate(self.loaded, code_a, code_b, action, steps, method, end_a, end_b)
+
+    def interpolate_across(
+        self,
+        code_a: np.ndarray,
+        action_a: str,
+        code_b: np.ndarray,
+        action_b: str,
+        steps: int,
+        end_a: np.ndarray | None = None,
+        end_b: np.ndarray | None = None,
+    ) -> list[Sample]:
+        """``steps`` motions from a code of one action to a code of another (see ``generate.ACROSS_RULE``)."""
+        loaded = self.loaded
+        return generate.interpolate_across(loaded, code_a, action_a, code_b, action_b, steps, end_a, end_b)
+
+    def vary(self, code: np.ndarray, action: str, n: int, radius: float, seed: int) -> list[Sample]:
+        """``n`` variations around ``code``, each with its own predicted end location and mode."""
+        return generate.neighbours(self.loaded, code, action, n, radius, seed)
+
+    def full_end(self, code: np.ndarray, action: str, end: np.ndarray | None) -> np.ndarray | None:
+        """(3,) end location for ``code``: ``end`` when (3,), a floor point (x, z) at the bank's predicted
+        height when (2,), the bank's prediction when None."""
+        index = generate.action_index(self.loaded, action)
+        rows = generate.resolve_ends(self.loaded, np.asarray(code, np.float32)[None], index, end)
+        return None if rows is None else rows[0].astype(np.float32)
+
+    def follow_path(self, path_xz: np.ndarray, action: str) -> PathResult:
+        """The code of ``action`` whose root path follows ``path_xz`` (K, 2), and its motion."""
+        return generate.follow_path(self.loaded, path_xz, action)
 
 
 def open_odmo(path: Path, device: str) -> Generator:

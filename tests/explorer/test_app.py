@@ -30,7 +30,7 @@ def test_export_npz_and_bvh_read_back_with_provenance(qtbot, explorer: Opened, t
     np.testing.assert_allclose(back.joints, shown.motion.joints, atol=1e-6)
     assert back.meta["code"] == pytest.approx([float(v) for v in c.bank.codes[3]])
     assert back.meta["action"] == c.bank.action_names[int(c.bank.actions[3])]
-    assert back.meta["model"] == str(c.loaded.path)
+    assert back.meta["model"] == str(c.generator.path)
     assert back.meta["end"] == pytest.approx([float(v) for v in c.bank.ends[3]])
     assert back.meta["bank_index"] == 3
     [bvh] = c.exporter.export_shown(tmp_path / "clip.bvh")
@@ -74,7 +74,7 @@ def test_map_and_timelapse_pngs_carry_metadata(qtbot, explorer: Opened, tmp_path
     strip = QImage(str(strip_png))
     assert strip.width() > strip.height()
     assert json.loads(strip.text("code")) == pytest.approx([float(v) for v in c.bank.codes[2]])
-    assert strip.text("model") == str(c.loaded.path)
+    assert strip.text("model") == str(c.generator.path)
 
 
 def test_broken_model_folder_shows_error_and_keeps_running(qtbot, explorer: Opened, tmp_path: Path) -> None:

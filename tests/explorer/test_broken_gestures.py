@@ -57,8 +57,8 @@ def test_end_sphere_sits_at_the_root_paths_height(qtbot, explorer: Opened) -> No
     marker = w.viewport.end_marker()
     root_end = w.viewport.trajectory_points()[-1]
     assert marker is not None
-    assert abs(marker[1] - root_end[1]) < 0.15 * c.loaded.root_height, (marker, root_end)
-    lift = np.array([0.0, c.loaded.root_height, 0.0])
+    assert abs(marker[1] - root_end[1]) < 0.15 * c.generator.root_height, (marker, root_end)
+    lift = np.array([0.0, c.generator.root_height, 0.0])
     expected = np.asarray(c.state.shown[0].end) + lift + w.viewport.offsets[0]
     np.testing.assert_allclose(marker, expected, atol=1e-5)
 
@@ -120,11 +120,11 @@ def test_drag_across_actions_says_how_and_decodes_each_end_as_its_own_action(qtb
     assert bank.action_names[0] in w.status_label.text() and bank.action_names[1] in w.status_label.text()
     for item in shown:
         assert bank.action_names[item.action] in item.label
-    first = generate.decode(c.loaded, bank.codes[a], 0, bank.ends[a : a + 1])
-    last = generate.decode(c.loaded, bank.codes[b], 1, bank.ends[b : b + 1])
+    first = generate.decode(c.generator.loaded, bank.codes[a], 0, bank.ends[a : a + 1])
+    last = generate.decode(c.generator.loaded, bank.codes[b], 1, bank.ends[b : b + 1])
     np.testing.assert_allclose(shown[0].motion.joints, first.joints, atol=1e-5)
     np.testing.assert_allclose(shown[-1].motion.joints, last.joints, atol=1e-5)
-    actions = generate.step_actions(c.loaded, np.stack([d.code for d in shown]), 0, 1)
+    actions = generate.step_actions(c.generator.loaded, np.stack([d.code for d in shown]), 0, 1)
     assert [d.action for d in shown] == actions.tolist()
 
 
@@ -143,7 +143,7 @@ def test_in_sequence_layout_chains_the_steps(qtbot, explorer: Opened) -> None:
     assert jumps.max() <= within + 1e-5, "the skeleton teleports between steps"
     # the end marker is the last step's end, carried along the chain
     transforms = generate.chain_transforms(steps)
-    last_end = np.asarray(c.state.shown[-1].end) + np.array([0.0, c.loaded.root_height, 0.0])
+    last_end = np.asarray(c.state.shown[-1].end) + np.array([0.0, c.generator.root_height, 0.0])
     expected = generate.apply_transform(transforms[-1], last_end[None])[0]
     np.testing.assert_allclose(w.viewport.end_marker(), expected, atol=1e-4)
     w.timeline.set_frame(steps[0].n_frames + 5)

@@ -106,7 +106,9 @@ def test_time_lapse_spreads_a_walk_along_its_path(explorer: Opened) -> None:
     from engine import generate
 
     i = _walker(explorer)
-    walk = generate.decode(c.loaded, c.bank.codes[i], int(c.bank.actions[i]), c.bank.ends[i : i + 1])
+    walk = generate.decode(
+        c.generator.loaded, c.bank.codes[i], int(c.bank.actions[i]), c.bank.ends[i : i + 1]
+    )
     standing = walk.with_joints(np.repeat(walk.joints[:1], walk.n_frames, axis=0))
 
     def bone_columns(image: QImage) -> np.ndarray:

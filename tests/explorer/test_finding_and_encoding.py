@@ -122,8 +122,8 @@ def test_dropped_clips_are_encoded_as_windows_and_bad_files_are_named(
         _drop(w, [good, bad])
     texts = close_message_boxes()
     assert texts and "broken.bvh" in texts[0] and "long_walk" not in texts[0]
-    moved = long.resample(c.loaded.fps) if abs(long.fps - c.loaded.fps) > 1e-6 else long
-    starts = window_starts(moved.n_frames, c.loaded.window, 20)
+    moved = long.resample(c.generator.fps) if abs(long.fps - c.generator.fps) > 1e-6 else long
+    starts = window_starts(moved.n_frames, c.generator.window, 20)
     assert len(c.state.extra.codes) == len(starts)
     np.testing.assert_allclose(
         w.latent_map.extra_points(), c.projection.transform(c.state.extra.codes), atol=1e-6

@@ -34,7 +34,7 @@ def test_window_opens_on_the_tiny_model(explorer: Opened) -> None:
 
 def test_click_point_selects_decodes_and_plays(qtbot, explorer: Opened) -> None:
     c = explorer.controller
-    bank, loaded = c.bank, c.loaded
+    bank, loaded = c.bank, c.generator.loaded
     index = _isolated_points(c.state.embedding, 1)[0]
     with qtbot.waitSignal(c.shownChanged, timeout=20_000):
         _click(qtbot, explorer, c.state.embedding[index])
@@ -82,7 +82,7 @@ def test_drag_between_points_updates_viewport_and_leaves_strip(qtbot, explorer: 
     viewport = window.viewport
     lead = viewport.offsets[0]
     assert lead[0] < 0
-    lift = np.array([0.0, c.loaded.root_height, 0.0])  # the model's end is relative to the floor origin
+    lift = np.array([0.0, c.generator.root_height, 0.0])  # the model's end is relative to the floor origin
     expected = np.asarray(c.state.shown[0].end) + lift + lead
     np.testing.assert_allclose(viewport.end_marker(), expected, atol=1e-5)
 

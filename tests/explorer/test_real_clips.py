@@ -61,12 +61,12 @@ def test_real_clip_is_the_encoded_window_at_the_decodes_start_and_heading(
         click_map(qtbot, opened, c.state.embedding[index])
     assert [d.label.split(" (")[-1] for d in c.state.shown] == ["decoded)", "real clip)"]
     decoded, real = (d.motion for d in c.state.shown)
-    assert real.n_frames == decoded.n_frames == c.loaded.window
+    assert real.n_frames == decoded.n_frames == c.generator.window
 
     source = Motion.from_file(data / Path(str(c.bank.sources[index])).name)
     start = real.meta["window_start"]
-    assert start == (source.n_frames - c.loaded.window) // 2  # the centre window, as the bank encodes it
-    window = source.joints[start : start + c.loaded.window]
+    assert start == (source.n_frames - c.generator.window) // 2  # the centre window, as the bank encodes it
+    window = source.joints[start : start + c.generator.window]
     np.testing.assert_allclose(_distances(real.joints), _distances(window), atol=1e-4)
 
     # Both start at the origin; the clip faces +z as the model's training windows do (the tiny model's
@@ -124,7 +124,7 @@ def test_a_long_clip_is_a_path_of_codes_that_plays_in_time_order(
     _, real = (d.motion for d in c.state.shown)
     start = c.bank.meta[late]["window_start"]
     assert real.meta["window_start"] == start > 0  # the clicked window of the clip, not its centre
-    clip = Motion.from_file(data / source).joints[start : start + c.loaded.window]
+    clip = Motion.from_file(data / source).joints[start : start + c.generator.window]
     np.testing.assert_allclose(_distances(real.joints), _distances(clip), atol=1e-4)
 
     window.select_clip_action.trigger()
