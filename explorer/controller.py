@@ -18,6 +18,7 @@ from PySide6.QtWidgets import QFileDialog
 
 from engine.errors import ConfigError, ModelFormatError, OdmoError
 from engine.motion.motion import Motion
+from explorer.capabilities import gate_tools
 from explorer.decoding import decode_one, full_end
 from explorer.main_window import MainWindow
 from explorer.map_layers import (
@@ -34,6 +35,7 @@ from explorer.map_layers import (
     tooltip_texts,
     tooltips,
 )
+from explorer.model_menu import fill_model_menus, remember_model
 from explorer.preview import BankPreview, read_preview
 from explorer.scene import build_scene
 from explorer.state import AppState, Decoded, ExtraPoints
@@ -97,6 +99,7 @@ class Controller(QObject):
         self._live_marker: np.ndarray | None = None
         self._live_details = False
         self._connect()
+        self._fill_model_menus()
         from explorer.encoding import ClipEncoder
         from explorer.exporting import Exporter
         from explorer.finding import Finder
@@ -190,7 +193,10 @@ class Controller(QObject):
         return self.state.model is not None and capability in self.generator.capabilities
 
     def refuse(self, capability: str, asked: str | None = None) -> bool:
-        """Say in the status bar that the loaded kind lacks ``capability``; True when it does."""
+        """Say in the status bar that the loaded kind lacks ``capability``; True when it does (or when
+        no model is loaded)."""
+        if self.state.model is None:
+            return True
         if self.can(capability):
             return False
         from engine.generators.base import refusal
@@ -307,6 +313,13 @@ class Controller(QObject):
             log.exception("showing %s failed", loaded.path)
             self.state.model = None
             self._model_failed(exc)
+            return
+        remember_model(self.window.settings, loaded.path)
+        self._fill_model_menus()
+
+    def _fill_model_menus(self) -> None:
+        w = self.window
+        fill_model_menus(w.recent_menu, w.bundled_menu, w.settings, self.open_model)
 
     def _show_model(self, loaded: Generator) -> None:
         self._projections = {k: v for k, v in loaded.bank.projections.items() if v.embedding_ is not None}
@@ -361,6 +374,7 @@ class Controller(QObject):
         w.action_combo.setCurrentIndex(0)
         w.action_combo.blockSignals(False)
         self._fill_color_combo(bank)
+        gate_tools(w, loaded)
         w.viewport.set_skeletons(loaded.skeleton.parents, 1)
         self._rig = None
         self.state.focus_action = 0
@@ -948,7 +962,7 @@ class Controller(QObject):
     def set_end(self, x: float, z: float) -> None:
         """Re-decode the current code with its end location moved to floor point (x, z)."""
         current = next((d for d in self.state.shown if d.code is not None), None)
-        if current is None or self.refuse("end"):
+        if self.refuse("end") or current is None:
             return
         label = current.label.split(" · end (")[0]
         self._decode_code(current.code, current.action, f"{label} · end ({x:.2f}, {z:.2f})", np.array([x, z]))

@@ -56,6 +56,8 @@ class ClipEncoder(QObject):
         if self.c.state.model is None:
             self.c.report_error("Cannot encode", "no model is loaded (File ▸ Open model folder…)")
             return
+        if self.c.refuse("encode"):
+            return
         loaded, stride = self.c.generator, self.c.window.stride_spin.value()
 
         def job(progress, cancel) -> tuple[list[EncodedClip], list[str]]:

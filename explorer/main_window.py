@@ -185,8 +185,11 @@ class MainWindow(QMainWindow):
 
     def _build_menus(self) -> None:
         file_menu = self.menuBar().addMenu("&File")
+        file_menu.setToolTipsVisible(True)
         self.open_model_action = file_menu.addAction("Open &model folder…")
         self.open_model_action.setShortcut(QKeySequence.Open)
+        self.recent_menu = file_menu.addMenu("Open &recent model")
+        self.bundled_menu = file_menu.addMenu("&Bundled models")
         self.open_data_action = file_menu.addAction("Open &dataset folder…")
         self.encode_action = file_menu.addAction("E&ncode clips… (or drop files on the map)")
         file_menu.addSeparator()
@@ -202,6 +205,7 @@ class MainWindow(QMainWindow):
         self.quit_action.triggered.connect(self.close)
 
         sel = self.menuBar().addMenu("&Selection")
+        sel.setToolTipsVisible(True)
         self.select_clip_action = sel.addAction("Select the &clip's windows")
         self.select_clip_action.setToolTip("Select every code of the playing code's clip, in time order")
         self.play_selection_action = sel.addAction("&Play selection together")

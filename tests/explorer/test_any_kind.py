@@ -1,0 +1,74 @@
+"""The explorer opens any generator kind: an Action2Motion model on the real window, gated tools, menus."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from engine.generators import open_generator
+from explorer.model_menu import bundled_models
+from tests.explorer.conftest import Opened
+from tests.explorer.gestures import click_map, drag_map, isolated_points, outside_view, played_points
+
+
+def test_an_a2m_model_decodes_interpolates_and_samples_in_the_window(
+    qtbot, open_explorer, tiny_a2m_dir
+) -> None:
+    opened: Opened = open_explorer(tiny_a2m_dir)
+    window, c = opened.window, opened.controller
+    qtbot.waitUntil(lambda: c.state.model is not None, timeout=60_000)
+    generator = open_generator(tiny_a2m_dir)
+    assert c.generator.kind == "a2m" and "a2m codes" in window.status_label.text()
+
+    index = isolated_points(c.state.embedding, 1)[0]
+    with qtbot.waitSignal(c.shownChanged, timeout=30_000):
+        click_map(qtbot, opened, c.state.embedding[index])
+    shown = c.state.shown[0]
+    action = c.bank.action_names[int(c.bank.actions[index])]
+    [expected] = generator.decode(c.bank.codes[index][None], action)
+    np.testing.assert_allclose(shown.motion.joints, expected.joints, atol=1e-5)
+    assert outside_view(window.viewport, played_points(opened)) == 0
+
+    same = np.flatnonzero(c.bank.actions == c.bank.actions[index])
+    far = int(same[np.argmax(np.linalg.norm(c.state.embedding[same] - c.state.embedding[index], axis=1))])
+    with qtbot.waitSignal(c.shownChanged, timeout=60_000):
+        drag_map(qtbot, opened, list(np.linspace(c.state.embedding[index], c.state.embedding[far], 6)))
+    qtbot.waitUntil(lambda: len(c.state.shown) == window.steps_spin.value(), timeout=60_000)
+    strip = c.state.shown
+    np.testing.assert_allclose(strip[0].motion.joints, expected.joints, atol=1e-5)
+    [last] = generator.decode(c.bank.codes[far][None], action)
+    np.testing.assert_allclose(strip[-1].motion.joints, last.joints, atol=1e-5)
+
+    assert window.mode_panel.sample_button.isEnabled()
+    with qtbot.waitSignal(c.shownChanged, timeout=60_000):
+        window.mode_panel.sample_button.click()
+    assert len(c.state.shown) == window.mode_panel.n_box.value()
+    assert c.state.extra is not None and len(c.state.extra.xy) == len(c.state.shown)
+
+
+def test_tools_the_kind_lacks_are_off_with_the_reason(
+    qtbot, open_explorer, tiny_a2m_dir, tiny_model_dir
+) -> None:
+    opened: Opened = open_explorer(tiny_a2m_dir)
+    window, c = opened.window, opened.controller
+    qtbot.waitUntil(lambda: c.state.model is not None, timeout=60_000)
+    assert not window.trajectory.isEnabled()
+    assert "cannot set where the motion ends" in window.trajectory.toolTip()
+    assert window.encode_action.isEnabled() == ("encode" in c.generator.capabilities)
+    c.set_end(1.0, 2.0)  # a gesture that reaches the controller anyway is refused, not run
+    assert "cannot set where the motion ends" in window.status_label.text()
+
+    with qtbot.waitSignal(c.modelLoaded, timeout=60_000):
+        c.open_model(tiny_model_dir)
+    assert window.trajectory.isEnabled() and window.trajectory.toolTip() == ""
+
+
+def test_file_menu_lists_bundled_and_recent_models(qtbot, open_explorer, tiny_model_dir) -> None:
+    opened: Opened = open_explorer(tiny_model_dir)
+    window, c = opened.window, opened.controller
+    qtbot.waitUntil(lambda: c.state.model is not None, timeout=60_000)
+    assert [a.text() for a in window.bundled_menu.actions()] == [p.name for p in bundled_models()]
+    assert "bandai2-odmo" in [a.text() for a in window.bundled_menu.actions()]
+    recent = [Path(a.text()) for a in window.recent_menu.actions()]
+    assert recent[0] == Path(tiny_model_dir).resolve()
