@@ -66,12 +66,14 @@ ROWS = {
     "a2m": "Action2Motion (joint positions)",
 }
 # The comparison rows keep the model they had before issue 18 (no bone projection, contact head, velocity
-# loss or free-running samples); the bundled default row has them.
+# loss, free-running samples or free-running loss terms); the bundled default row has them.
 _BEFORE_18 = {
     "bone_projection": False,
     "foot_contact": False,
     "w_velocity": 0.0,
     "scheduled_sampling": "one_step",
+    "w_free": 0.0,
+    "w_speed": 0.0,
 }
 ODMO_VARIANTS: dict[str, dict[str, Any]] = {
     "odmo": dict(_BEFORE_18),

@@ -16,6 +16,9 @@ _BEFORE_SWITCHES = {
     "foot_contact": False,
     "w_velocity": 0.0,
     "scheduled_sampling": "one_step",
+    "w_skate": 1.0,
+    "w_free": 0.0,
+    "w_speed": 0.0,
 }
 SCHEDULED_SAMPLING = ("one_step", "free_run")
 #: The paper's model in one setting, ``OdmoConfig(n_actions, n_joints, **PAPER)``: every project change off.
@@ -41,8 +44,14 @@ class OdmoConfig(ModelConfig):
     the reconstruction loss is taken on the projected joints, ``w_raw`` weights it on the raw ones the
     decoder reads back). ``foot_contact`` adds a head predicting which ``foot_joints`` are planted
     (labels from the data, resting heights ``foot_heights`` above the floor), a contact loss
-    (``w_contact``: cross-entropy, plus the speed of truly planted feet) and the decode-time clean-up
-    that pins planted feet. ``w_velocity`` weights an L2 loss on frame-to-frame joint velocities.
+    (``w_contact``: cross-entropy; ``w_skate``: the squared speed of generated feet where the data's are
+    planted) and the decode-time clean-up that pins planted feet. ``w_velocity`` weights an L2 loss on
+    frame-to-frame joint velocities. ``w_free`` weights the reconstruction loss of a free-running decode
+    of the same codes (the decoder as it runs at sampling time, trained through its own poses) and
+    ``w_speed`` the squared error of that decode's per-window mean joint speeds (which, unlike an L2
+    loss on positions, does not reward a still mean pose when the phase is uncertain). The skate and
+    speed terms are in m²/s²; their defaults keep every term's gradient on the decoder near the
+    reconstruction's (README, "Where the model differs from the paper").
     ``scheduled_sampling`` says where the non-teacher-forced previous poses come from: "one_step" (a
     teacher-forced pass, the default) or "free_run" (a free-running decode, as the reference's per-step
     loop does; measured worse on the bundled recipe, see the README).
@@ -82,16 +91,20 @@ class OdmoConfig(ModelConfig):
     w_raw: float = 1.0
     foot_contact: bool = True
     w_contact: float = 1.0
-    w_velocity: float = 0.1
+    w_velocity: float = 0.0
     foot_joints: tuple[int, ...] = ()
     foot_heights: tuple[float, ...] = ()
     scheduled_sampling: str = "one_step"
+    w_skate: float = 0.01
+    w_free: float = 1.0
+    w_speed: float = 0.05
     arch: str = "odmo"
 
     POSITIVE = ("n_actions", "n_joints", "window", "fps", "latent_dim", "enc_hidden", "enc_fc", "traj_hidden")
     POSITIVE += ("motion_hidden", "prior_sigma2", "lr", "batch_size", "epoch_size")
     NON_NEGATIVE = ("w_recon", "w_traj", "w_consistency", "w_contrastive", "w_prior", "traj_y_weight")
     NON_NEGATIVE += ("w_raw", "w_contact", "w_velocity", "contrastive_pull", "epochs", "tf_decay_epochs")
+    NON_NEGATIVE += ("w_skate", "w_free", "w_speed")
     RATES = ("tf_start", "tf_end")
     ARCH = "odmo"
     BEFORE = _BEFORE_SWITCHES

@@ -7,7 +7,19 @@ from torch import Tensor
 
 from engine.model.config import OdmoConfig
 
-LOSS_TERMS = ("recon", "traj", "consistency", "contrastive", "prior", "raw", "velocity", "contact")
+LOSS_TERMS = (
+    "recon",
+    "traj",
+    "consistency",
+    "contrastive",
+    "prior",
+    "raw",
+    "velocity",
+    "contact",
+    "skate",
+    "free",
+    "speed",
+)
 
 
 def masked_mse(pred: Tensor, target: Tensor, mask: Tensor, axis_weights: Tensor | None = None) -> Tensor:
@@ -33,15 +45,35 @@ def velocity_loss(pred: Tensor, target: Tensor, mask: Tensor, fps: float) -> Ten
     return masked_mse(pred.diff(dim=1) * fps, target.diff(dim=1) * fps, both)
 
 
-def contact_loss(logits: Tensor, labels: Tensor, feet: Tensor, mask: Tensor, fps: float) -> Tensor:
-    """Cross-entropy of the contact logits (B, T, F) against labels (B, T, F) over real frames, plus the
-    mean squared speed (m²/s²) of generated foot joints ``feet`` (B, T, F, 3) where the data's are planted."""
+def mean_speeds(joints: Tensor, mask: Tensor, fps: float, root: int) -> Tensor:
+    """Per window and joint (B, J): mean speed (m/s) of the root-relative joints (B, T, J, 3) over pairs
+    of real frames; independent of the motion's phase."""
+    local = joints - joints[:, :, root : root + 1]
+    both = (mask[:, 1:].bool() & mask[:, :-1].bool()).to(joints.dtype)[:, :, None]
+    speed = local.diff(dim=1).square().sum(-1).clamp(min=1e-12).sqrt() * fps
+    return (speed * both).sum(1) / both.sum(1).clamp(min=1.0)
+
+
+def speed_loss(pred: Tensor, target: Tensor, mask: Tensor, fps: float, root: int) -> Tensor:
+    """Squared error (m²/s²) of the per-window mean joint speeds of ``pred`` against ``target``
+    (B, T, J, 3): the motion an L2 loss on positions lets shrink towards a mean pose."""
+    return (mean_speeds(pred, mask, fps, root) - mean_speeds(target, mask, fps, root)).square().mean()
+
+
+def contact_loss(logits: Tensor, labels: Tensor, mask: Tensor) -> Tensor:
+    """Cross-entropy of the contact logits (B, T, F) against labels (B, T, F) over real frames."""
     m = mask.to(logits.dtype).unsqueeze(-1).expand_as(logits)
     bce = torch.nn.functional.binary_cross_entropy_with_logits(logits, labels, weight=m, reduction="sum")
+    return bce / m.sum().clamp(min=1.0)
+
+
+def skate_loss(feet: Tensor, labels: Tensor, mask: Tensor, fps: float) -> Tensor:
+    """Mean squared speed (m²/s²) of generated foot joints ``feet`` (B, T, F, 3) where the data's are
+    planted (``labels`` (B, T, F)) in both frames of a real frame step."""
+    m = mask.to(feet.dtype).unsqueeze(-1)
     planted = (labels[:, 1:] * labels[:, :-1] * m[:, 1:] * m[:, :-1]).detach()
     speed2 = (feet.diff(dim=1) * fps).square().sum(-1)
-    skate = (speed2 * planted).sum() / planted.sum().clamp(min=1.0)
-    return bce / m.sum().clamp(min=1.0) + skate
+    return (speed2 * planted).sum() / planted.sum().clamp(min=1.0)
 
 
 def contrastive_loss(
@@ -76,6 +108,7 @@ def odmo_losses(
     raw_joints: Tensor | None = None,
     contact_logits: Tensor | None = None,
     contacts: Tensor | None = None,
+    free_joints: Tensor | None = None,
 ) -> dict[str, Tensor]:
     """Every loss term and the weighted ``total``.
 
@@ -90,6 +123,7 @@ def odmo_losses(
     raw_joints : (2B, T, J, 3) the decoder's joints before the bone projection (None: no projection).
     contact_logits, contacts : (2B, T, F) predicted contact logits and the data's labels of the config's
         foot joints (None: no contact head).
+    free_joints : (2B, T, J, 3) a free-running decode of the same codes (None: no free-running terms).
     """
     axis = torch.tensor([1.0, config.traj_y_weight, 1.0], device=joints.device)
     zero = joints.new_zeros(())
@@ -103,10 +137,17 @@ def odmo_losses(
         "raw": zero if raw_joints is None else masked_mse(raw_joints, joints, mask),
         "velocity": velocity_loss(pred_joints, joints, mask, config.fps),
         "contact": zero,
+        "skate": zero,
+        "free": zero,
+        "speed": zero,
     }
+    if free_joints is not None:
+        terms["free"] = masked_mse(free_joints, joints, mask)
+        terms["speed"] = speed_loss(free_joints, joints, mask, config.fps, root)
     if contact_logits is not None and contacts is not None:
         feet = pred_joints[:, :, list(config.foot_joints)]
-        terms["contact"] = contact_loss(contact_logits, contacts, feet, mask, config.fps)
+        terms["contact"] = contact_loss(contact_logits, contacts, mask)
+        terms["skate"] = skate_loss(feet, contacts, mask, config.fps)
     weights = {
         "recon": config.w_recon,
         "traj": config.w_traj,
@@ -116,6 +157,9 @@ def odmo_losses(
         "raw": config.w_raw if raw_joints is not None else 0.0,
         "velocity": config.w_velocity,
         "contact": config.w_contact if contact_logits is not None else 0.0,
+        "skate": config.w_skate if contact_logits is not None else 0.0,
+        "free": config.w_free if free_joints is not None else 0.0,
+        "speed": config.w_speed if free_joints is not None else 0.0,
     }
     terms["total"] = sum(weights[k] * terms[k] for k in LOSS_TERMS if weights[k] > 0)
     return terms

@@ -136,6 +136,9 @@ def _forward(
         z, truth = mu, None
     end = data.ends if config.use_end_location else None
     out = model.decode_full(z, data.actions, end, prev_truth=truth, tf_rate=tf_rate, generator=generator)
+    free = None
+    if config.w_free > 0 or config.w_speed > 0:
+        free = out.joints if truth is None else model.decode_full(z, data.actions, end).joints
     return odmo_losses(
         config,
         joints=data.joints,
@@ -150,6 +153,7 @@ def _forward(
         raw_joints=out.raw if model.projection is not None else None,
         contact_logits=out.contact,
         contacts=data.contacts,
+        free_joints=free,
     )
 
 

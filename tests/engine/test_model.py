@@ -11,7 +11,15 @@ from engine.errors import ConfigError, ModelFormatError
 from engine.model import generator as generator_module
 from engine.model import odmo as odmo_module
 from engine.model.config import OdmoConfig
-from engine.model.losses import contrastive_loss, masked_mse, odmo_losses, prior_loss
+from engine.model.losses import (
+    contrastive_loss,
+    masked_mse,
+    mean_speeds,
+    odmo_losses,
+    prior_loss,
+    skate_loss,
+    speed_loss,
+)
 from engine.model.odmo import OdmoModel
 from engine.model.precision import bfloat16_autocast
 
@@ -73,6 +81,24 @@ def test_free_running_decode_matches_a_step_by_step_nn_lstm_loop(relative: bool)
         joints, _ = model.decode(z, action, end)
         expected = _reference_free_run(model, z, action, end)
     torch.testing.assert_close(joints, expected, atol=1e-5, rtol=1e-5)
+
+
+def test_free_running_decode_trains_like_the_step_by_step_loop() -> None:
+    """The free-running loss terms backpropagate through the fused loop: same gradients as nn.LSTM steps."""
+    model = _model().train()
+    z, action, end = torch.randn(3, 20), torch.tensor([0, 1, 2]), torch.randn(3, 3)
+    target = torch.randn(3, T, J, 3)
+    grads = []
+    for decode in (
+        lambda: model.decode(z, action, end)[0],
+        lambda: _reference_free_run(model, z, action, end),
+    ):
+        model.zero_grad()
+        (decode() - target).square().mean().backward()
+        grads.append({n: p.grad.clone() for n, p in model.named_parameters() if p.grad is not None})
+    assert grads[0].keys() == grads[1].keys() and any(n.startswith("motion_gen.lstm") for n in grads[0])
+    for name, grad in grads[0].items():
+        torch.testing.assert_close(grad, grads[1][name], atol=1e-5, rtol=1e-4, msg=name)
 
 
 @pytest.mark.parametrize("batch", [1, 3])
@@ -252,16 +278,66 @@ def test_every_frame_loss_term_ignores_padding() -> None:
         "same": torch.tensor([True, False]),
         "root": 0,
     }
-    pred = torch.randn(4, T, J, 3)
+    pred, free = torch.randn(4, T, J, 3), torch.randn(4, T, J, 3)
     a = odmo_losses(cfg, joints=joints, trajectory=joints[:, :, 0], mask=mask, pred_joints=pred,
-                    pred_trajectory=pred[:, :, 1], **kw)  # fmt: skip
-    joints2, pred2 = joints.clone(), pred.clone()
+                    pred_trajectory=pred[:, :, 1], free_joints=free, **kw)  # fmt: skip
+    joints2, pred2, free2 = joints.clone(), pred.clone(), free.clone()
     joints2[0, 5:] = 7.0
     pred2[0, 5:] = -3.0
+    free2[0, 5:] = 4.0
     b = odmo_losses(cfg, joints=joints2, trajectory=joints2[:, :, 0], mask=mask, pred_joints=pred2,
-                    pred_trajectory=pred2[:, :, 1], **kw)  # fmt: skip
+                    pred_trajectory=pred2[:, :, 1], free_joints=free2, **kw)  # fmt: skip
+    assert a["free"] > 0 and a["speed"] > 0
     for k in a:
         torch.testing.assert_close(a[k], b[k])
+
+
+def _circling(phase: float, radius: float = 0.2, fps: float = 20.0) -> torch.Tensor:
+    """(1, 40, 2, 3): a root walking along x at 1 m/s and a hand circling it at 1 turn/s (radius m)."""
+    t = torch.arange(40, dtype=torch.float64) / fps
+    root = torch.stack([t, torch.zeros_like(t), torch.zeros_like(t)], dim=1)
+    angle = 2 * math.pi * t + phase
+    hand = root + radius * torch.stack([torch.cos(angle), torch.sin(angle), torch.zeros_like(t)], dim=1)
+    return torch.stack([root, hand], dim=1)[None]
+
+
+def test_mean_speeds_are_root_relative_and_phase_free() -> None:
+    mask = torch.ones(1, 40, dtype=torch.bool)
+    speeds = mean_speeds(_circling(0.0), mask, 20.0, root=0)
+    # chord of 1/20 turn at 20 fps: 2·r·sin(π/20)·20 m/s (≈ 2π·r), the root's own walk left out
+    torch.testing.assert_close(
+        speeds[0, 1], torch.tensor(2 * 0.2 * math.sin(math.pi / 20) * 20, dtype=torch.float64)
+    )
+    assert speeds[0, 0] < 1e-4  # the root itself: only the sqrt guard (1e-6 m a frame)
+    # the same motion half a turn later: no speed error; a hand held still: the whole speed
+    assert speed_loss(_circling(math.pi), _circling(0.0), mask, 20.0, root=0) < 1e-12
+    still = _circling(0.0)
+    still[:, :, 1] = still[:, :, 0] + torch.tensor([0.2, 0.0, 0.0], dtype=torch.float64)
+    expected = speeds[0, 1] ** 2 / 2
+    torch.testing.assert_close(
+        speed_loss(still, _circling(0.0), mask, 20.0, root=0), expected, rtol=1e-4, atol=0
+    )
+    # padded frames do not count
+    padded = mask.clone()
+    padded[0, 20:] = False
+    moved = _circling(0.0)
+    moved[:, 20:] += 5.0 * torch.rand(1, 20, 2, 3, dtype=torch.float64)
+    torch.testing.assert_close(
+        mean_speeds(moved, padded, 20.0, 0), mean_speeds(_circling(0.0), padded, 20.0, 0)
+    )
+
+
+def test_skate_loss_is_the_squared_speed_of_planted_feet() -> None:
+    t = torch.arange(10, dtype=torch.float32)
+    feet = torch.zeros(1, 10, 2, 3)
+    feet[0, :, 0, 0] = t * 0.05  # foot 0 slides at 1 m/s (20 fps)
+    feet[0, :, 1, 2] = t * 0.10  # foot 1 swings at 2 m/s
+    labels = torch.zeros(1, 10, 2)
+    labels[0, :, 0] = 1.0  # only foot 0 is planted in the data
+    mask = torch.ones(1, 10, dtype=torch.bool)
+    torch.testing.assert_close(skate_loss(feet, labels, mask, 20.0), torch.tensor(1.0))
+    labels[0, :, 1] = 1.0
+    torch.testing.assert_close(skate_loss(feet, labels, mask, 20.0), torch.tensor(2.5))
 
 
 def test_contrastive_known_values() -> None:
@@ -372,6 +448,7 @@ def test_the_papers_model_is_one_setting_away() -> None:
     paper.attach_skeleton(procedural_skeleton())
     assert paper.projection is None and paper.contact is None and not paper.motion_gen.relative
     assert not paper.motion_gen.free_running_samples and paper.config.w_velocity == 0.0
+    assert paper.config.w_free == paper.config.w_speed == 0.0
     ours = OdmoModel(OdmoConfig(n_actions=3, n_joints=11, foot_joints=(8, 10), foot_heights=(0.05, 0.05)))
     ours.attach_skeleton(procedural_skeleton())
     assert ours.projection is not None and ours.contact is not None
