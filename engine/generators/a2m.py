@@ -116,8 +116,7 @@ def _has_code_space(loaded: LoadedA2m) -> bool:
 def decode_a2m(
     loaded: LoadedA2m, codes: np.ndarray, action: int | str, bone_scale: float | np.ndarray = 1.0
 ) -> np.ndarray:
-    """(N, T, J, 3) float32 motions of codes (N, code_dim) of one action, each rolled out free-running
-    on its own (so the same code gives the same motion bit for bit in any batch)."""
+    """(N, T, J, 3) float32 motions of codes (N, code_dim) of one action, rolled out free-running."""
     x = np.asarray(codes, dtype=np.float32)
     if x.ndim == 1:
         x = x[None]
@@ -128,12 +127,10 @@ def decode_a2m(
     index = action_index(loaded, action)
     device = _device(loaded)
     scale = _bone_scale(loaded, bone_scale)
-    action = torch.tensor([index], dtype=torch.long, device=device)
-    out = []
-    with torch.inference_mode():  # one code at a time: a code's motion never depends on its batch
-        for code in torch.from_numpy(x).to(device):
-            out.append(loaded.model.decode(loaded.model.codes_to_z(code[None]), action, scale)[0])
-    return torch.stack(out).cpu().numpy().astype(np.float32)
+    with torch.inference_mode():
+        z = loaded.model.codes_to_z(torch.from_numpy(x).to(device))
+        actions = torch.full((len(x),), index, dtype=torch.long, device=device)
+        return loaded.model.decode(z, actions, scale).cpu().numpy().astype(np.float32)
 
 
 def encode_a2m(loaded: LoadedA2m, motion: Motion, action: int | str) -> np.ndarray:

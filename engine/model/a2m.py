@@ -231,13 +231,14 @@ class A2mModel(nn.Module):
         return joints.flatten(-2)
 
     def _rollout(
-        self, cond: Tensor, z: Tensor | None, generator: torch.Generator | None
+        self, cond: Tensor, z: Tensor | None, generator: torch.Generator | None, with_prior: bool = True
     ) -> tuple[Tensor, Tensor, Tensor, Tensor, Tensor]:
         """Free-running poses (B, T, J·3), generator outputs (B, T, out), the z used (B, T, Z) and the prior
         mean / log-variance (B, T, Z).
 
         Each step feeds the previous generated pose; z_t is taken from ``z`` (B, T, Z) or drawn from the
-        prior with ``generator``.
+        prior with ``generator``. Without ``with_prior`` (and with ``z`` given) the prior network is
+        skipped and ``z`` stands in for its mean and log-variance.
         """
         b, t = cond.shape[:2]
         prev = cond.new_zeros(b, 1, self.config.n_joints * 3)
@@ -245,7 +246,10 @@ class A2mModel(nn.Module):
         poses, outputs, zs, mus, logvars = [], [], [], [], []
         for i in range(t):
             c = cond[:, i : i + 1]
-            mu_p, logvar_p, h_prior = self.prior(torch.cat([prev, c], 2), h_prior)
+            if z is not None and not with_prior:
+                mu_p = logvar_p = z[:, i : i + 1]
+            else:
+                mu_p, logvar_p, h_prior = self.prior(torch.cat([prev, c], 2), h_prior)
             if z is None:
                 eps = torch.randn(mu_p.shape, generator=generator, device=mu_p.device)
                 z_t = mu_p + torch.exp(0.5 * logvar_p) * eps
@@ -311,7 +315,7 @@ class A2mModel(nn.Module):
 
     def decode(self, z: Tensor, actions: Tensor, bone_scale: Tensor | float = 1.0) -> Tensor:
         """Motions (B, T, J, 3) of z sequences (B, T, Z) and ``actions`` (B,), rolled out free-running."""
-        poses, params, _, _, _ = self._rollout(self._condition(actions), z, None)
+        poses, params, _, _, _ = self._rollout(self._condition(actions), z, None, with_prior=False)
         return self._motions(poses, params, bone_scale)
 
 

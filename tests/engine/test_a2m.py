@@ -168,8 +168,8 @@ def test_mode_samples_are_their_codes_decoded(a2m_dir: Path, torch_single_thread
     one = generator.sample(SampleRequest("walk", 2, 2, mode=0))
     assert [s.mode for s in one] == [0, 0]
     strip = generator.interpolate(one[0].code, one[1].code, "walk", 4)
-    np.testing.assert_array_equal(strip[0].motion.joints, one[0].motion.joints)
-    np.testing.assert_array_equal(strip[-1].motion.joints, one[1].motion.joints)
+    np.testing.assert_allclose(strip[0].motion.joints, one[0].motion.joints, atol=1e-5)  # other batches
+    np.testing.assert_allclose(strip[-1].motion.joints, one[1].motion.joints, atol=1e-5)
     with pytest.raises(ConfigError, match="unknown strategy"):
         generator.sample(SampleRequest("walk", 1, 0, strategy="greedy"))
 

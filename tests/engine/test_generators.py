@@ -141,7 +141,8 @@ def test_declared_capabilities_work_and_the_others_are_refused(
     if "decode" in generator.capabilities:
         z = np.zeros((2, generator.code_space.size), dtype=np.float32)
         motions = generator.decode(z, action)
-        assert len(motions) == 2 and np.array_equal(motions[0].joints, motions[1].joints)
+        assert len(motions) == 2  # vectorised sin/cos may round the rows of one batch differently
+        np.testing.assert_allclose(motions[0].joints, motions[1].joints, atol=1e-5)
         assert motions[0].joints.shape == (generator.window, generator.skeleton.n_joints, 3)
     else:
         with pytest.raises(CapabilityError, match="cannot decode a given latent code"):
