@@ -97,7 +97,7 @@ def bench_playback(app: QApplication, explorer, n_skeletons: int, frames: int) -
     """Median ms of one playback step with ``n_skeletons`` skeletons, render included."""
     c, viewport = explorer.controller, explorer.window.viewport
     c.state.selection = tuple(range(n_skeletons))
-    c.play_selection()
+    c.gestures.play_selection()
     _wait(app, lambda: len(c.state.shown) >= n_skeletons)
     explorer.window.timeline.pause()
     update, total = [], []
@@ -138,8 +138,8 @@ def bench_map(app: QApplication, explorer, n_points: int, repeats: int, color_by
         lmap.set_points(xy, colors, ids)
         lmap.plot.viewport().repaint()
         times.append(time.perf_counter() - start)
-    explorer.controller._drawn = None
-    explorer.controller._redraw_map(explorer.controller.state.embedding)
+    explorer.controller.map.drawn = None
+    explorer.controller.map.redraw_map(explorer.controller.state.embedding)
     return {
         "measure": f"map redraw, {n_points:,} points by {color_by}",
         "n": repeats,

@@ -64,12 +64,12 @@ def _drag(explorer: Explorer, start: int, target: int, steps: int, settle: float
     """Drag on the map from code ``start`` to code ``target`` in ``steps`` moves, then release on it."""
     c = explorer.controller
     emb = c.state.embedding
-    c.drag_start(start)
+    c.gestures.drag_start(start)
     for s in np.linspace(0.0, 1.0, steps)[1:]:
         xy = (1 - s) * emb[start] + s * emb[target]
-        c.drag_move(float(xy[0]), float(xy[1]))
+        c.gestures.drag_move(float(xy[0]), float(xy[1]))
         _settle(explorer, 0.05)
-    c.drag_finish(float(emb[target][0]), float(emb[target][1]))
+    c.gestures.drag_finish(float(emb[target][0]), float(emb[target][1]))
     _settle(explorer, settle)
 
 
@@ -92,7 +92,7 @@ def main() -> int:
     c.state.focus_action = walk
     first, second = _two_modes(explorer, walk)
 
-    c.click_point(first)
+    c.gestures.click_point(first)
     _settle(explorer, 1.5)
     take_screenshot(explorer, args.out / "01_click_decode.png")
 
@@ -104,22 +104,22 @@ def main() -> int:
     centre = emb[first]
     radius = 0.5 * float(np.median(np.linalg.norm(emb[members] - centre, axis=1)))
     angles = np.linspace(0.0, 2 * np.pi, 24, endpoint=False)
-    c.lasso(centre + radius * np.stack([np.cos(angles), np.sin(angles)], axis=1))
-    c.fit_local_mode()
+    c.gestures.lasso(centre + radius * np.stack([np.cos(angles), np.sin(angles)], axis=1))
+    c.generation.fit_local_mode()
     _settle(explorer)
-    c.sample_variations()
+    c.generation.sample_variations()
     _settle(explorer, 1.5)
     take_screenshot(explorer, args.out / "03_lasso_local_mode_samples.png")
 
-    c.clear_selection()
+    c.gestures.clear_selection()
     c.state.projection = "tsne"
     c.state.color_by = "motion energy"
     _settle(explorer)
-    c.sample("mode_preserving", 10, 0)
+    c.generation.sample("mode_preserving", 10, 0)
     _settle(explorer, 1.5)
     take_screenshot(explorer, args.out / "04_tsne_energy_samples.png")
 
-    c.clear_selection()
+    c.gestures.clear_selection()
     c.state.projection = "pca"
     c.state.color_by = "action"
     _settle(explorer)

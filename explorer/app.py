@@ -111,7 +111,7 @@ def create_explorer(
     controller.state.projection = projection
     controller.state.color_by = color_by
     if select is not None:
-        controller.modelLoaded.connect(lambda _m: controller.select_index(select))
+        controller.modelLoaded.connect(lambda _m: controller.gestures.select_index(select))
     explorer = Explorer(window, controller)
     target = model if model is not None else DEFAULT_MODEL
     if model is None and not DEFAULT_MODEL.is_dir():

@@ -78,7 +78,7 @@ class ClipEncoder(QObject):
                 done.append(EncodedClip(Path(name), windows, decoded))
             return done, failed
 
-        self.c._run_task(f"Encoding {len(paths)} file(s)", job, self._encoded)
+        self.c.run_task(f"Encoding {len(paths)} file(s)", job, self._encoded)
 
     def _encoded(self, result: tuple[list[EncodedClip], list[str]]) -> None:
         done, failed = result

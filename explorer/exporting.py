@@ -61,7 +61,7 @@ class Exporter(QObject):
 
     def export_shown(self, path: str | Path) -> list[Path] | None:
         """Write the motions shown in the viewport to ``path`` (BVH or NPZ; numbered when several)."""
-        return self.c._guard(
+        return self.c.guard(
             "Export failed", lambda: export.export_motions(self.c.state.shown, path, self._model_path())
         )
 
@@ -77,13 +77,13 @@ class Exporter(QObject):
             labels = mode_labels(bank)
             items = []
             for i in c.state.selection:
-                code, action, end = c.bank_item(i)
+                code, action, end = c.gestures.bank_item(i)
                 mode = None if labels[i] < 0 else int(labels[i])
                 motion = decode_one(loaded, code, action, end, mode)
                 items.append(Decoded(motion, f"#{i} {bank.sources[i]}", code, action, end, mode, None, i))
             return export.export_motions(items, path, str(loaded.path))
 
-        return self.c._guard("Export failed", run)
+        return self.c.guard("Export failed", run)
 
     def export_map(self, path: str | Path, width: int | None = None) -> Path | None:
         """Save the map plot alone (points, overlays, axis names; no tool buttons or legend boxes) as a
@@ -96,7 +96,7 @@ class Exporter(QObject):
             "selection": list(state.selection),
         }
         lmap = self.c.window.latent_map
-        return self.c._guard("Export failed", lambda: export.save_png(lmap.render_plot(width), path, meta))
+        return self.c.guard("Export failed", lambda: export.save_png(lmap.render_plot(width), path, meta))
 
     def export_timelapse(self, path: str | Path) -> Path | None:
         """Save a time-lapse PNG of the first motion shown, seen from the side of its travel."""
@@ -106,12 +106,12 @@ class Exporter(QObject):
                 raise ConfigError("no motion is shown")
             return export.save_timelapse(self.c.state.shown[0], path, self._model_path())
 
-        return self.c._guard("Export failed", run)
+        return self.c.guard("Export failed", run)
 
     def video_frames(self) -> list[np.ndarray]:
         """Every frame of what plays, as the 3-D view renders it (the playback frame is restored)."""
         c, viewport = self.c, self.c.window.viewport
-        played = c._played
+        played = c.playback.played
         if not played:
             raise ConfigError("no motion is shown")
         length = max(m.n_frames for m in played)
@@ -120,11 +120,11 @@ class Exporter(QObject):
         c.window.timeline.pause()
         try:
             for frame in range(length):
-                c._set_frame(frame)
+                c.playback.set_frame(frame)
                 viewport.render_now()
                 frames.append(np.asarray(viewport.plotter.screenshot(return_img=True), dtype=np.uint8))
         finally:
-            c._set_frame(current)
+            c.playback.set_frame(current)
             if playing:
                 c.window.timeline.play()
         return frames
@@ -134,9 +134,9 @@ class Exporter(QObject):
 
         def run() -> Path:
             frames = self.video_frames()
-            return write_video(frames, path, float(self.c._played[0].fps))
+            return write_video(frames, path, float(self.c.playback.played[0].fps))
 
-        return self.c._guard("Export failed", run)
+        return self.c.guard("Export failed", run)
 
     def export_timelapse_video(self, path: str | Path) -> Path | None:
         """Write the time-lapse of the first motion shown, growing pose by pose, as MP4 or GIF."""
@@ -148,7 +148,7 @@ class Exporter(QObject):
             frames = export.timelapse_video_frames(item.motion, title=item.label)
             return write_video(frames, path, float(item.motion.fps))
 
-        return self.c._guard("Export failed", run)
+        return self.c.guard("Export failed", run)
 
     def ask(self, what: str) -> None:
         """Ask where to export ``what`` (a file name is suggested), then export it."""

@@ -73,8 +73,8 @@ class Finder(QObject):
         self.panel = controller.window.find_panel
         self.marks: list[Bookmark] = []
         self.panel.searchChanged.connect(self.search)
-        self.panel.resultChosen.connect(controller.click_point)
-        self.panel.neighbourChosen.connect(controller.click_point)
+        self.panel.resultChosen.connect(controller.gestures.click_point)
+        self.panel.neighbourChosen.connect(controller.gestures.click_point)
         self.panel.bookmarkRequested.connect(self.bookmark_selection)
         self.panel.bookmarkChosen.connect(self.open_bookmark)
         controller.state.events.shown.connect(self._shown_changed)
@@ -92,7 +92,7 @@ class Finder(QObject):
 
     def _shown_changed(self, shown: tuple[Decoded, ...]) -> None:
         item = next((d for d in shown if d.code is not None), None)
-        if item is None or self.c.state.model is None or self.c._drag_from is not None:
+        if item is None or self.c.state.model is None or self.c.gestures.drag_from is not None:
             return
         from engine.latent.neighbours import nearest
 
@@ -143,4 +143,4 @@ class Finder(QObject):
         """Select a bookmark's codes and play them."""
         if 0 <= k < len(self.marks):
             self.c.state.selection = self.marks[k].indices
-            self.c.play_selection()
+            self.c.gestures.play_selection()

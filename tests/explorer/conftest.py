@@ -49,7 +49,7 @@ def close_message_boxes() -> list[str]:
 
 
 @pytest.fixture
-def open_explorer(qtbot, tmp_path: Path) -> Iterator[Callable[..., Opened]]:
+def open_explorer(qtbot, tmp_path_factory) -> Iterator[Callable[..., Opened]]:
     """Open explorers (temp settings file); on teardown close them and check nothing leaked."""
     opened: list[Opened] = []
 
@@ -59,7 +59,7 @@ def open_explorer(qtbot, tmp_path: Path) -> Iterator[Callable[..., Opened]]:
         wait: bool = True,
         before_show: Callable[[object], None] | None = None,
     ) -> Opened:
-        settings = settings or tmp_path / "settings.ini"
+        settings = settings or tmp_path_factory.mktemp("qt-settings") / "settings.ini"  # not in tmp_path
         explorer = create_explorer(model, None, QSettings(str(settings), QSettings.Format.IniFormat))
         if before_show is not None:
             before_show(explorer.window)

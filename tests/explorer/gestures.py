@@ -81,5 +81,5 @@ def outside_view(viewport, points: np.ndarray) -> int:
 def played_points(opened: Opened, every: int = 6) -> np.ndarray:
     """World positions of every ``every``-th frame of each motion played, layout offsets included."""
     c, viewport = opened.controller, opened.window.viewport
-    pts = [m.joints[::every] + viewport.offsets[k] for k, m in enumerate(c._played)]
+    pts = [m.joints[::every] + viewport.offsets[k] for k, m in enumerate(c.playback.played)]
     return np.concatenate([p.reshape(-1, 3) for p in pts])

@@ -56,7 +56,7 @@ def test_tools_the_kind_lacks_are_off_with_the_reason(
     assert not window.trajectory.isEnabled()
     assert "cannot set where the motion ends" in window.trajectory.toolTip()
     assert window.encode_action.isEnabled() == ("encode" in c.generator.capabilities)
-    c.set_end(1.0, 2.0)  # a gesture that reaches the controller anyway is refused, not run
+    c.generation.set_end(1.0, 2.0)  # a gesture that reaches the controller anyway is refused, not run
     assert "cannot set where the motion ends" in window.status_label.text()
 
     with qtbot.waitSignal(c.modelLoaded, timeout=60_000):

@@ -18,7 +18,7 @@ from tests.explorer.conftest import Opened, close_message_boxes
 
 def _show_bank_code(qtbot, opened: Opened, index: int) -> None:
     with qtbot.waitSignal(opened.controller.shownChanged, timeout=20_000):
-        opened.controller.click_point(index)
+        opened.controller.gestures.click_point(index)
 
 
 def test_export_npz_and_bvh_read_back_with_provenance(qtbot, explorer: Opened, tmp_path: Path) -> None:

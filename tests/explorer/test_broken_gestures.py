@@ -95,7 +95,7 @@ def test_strips_samples_and_live_drags_stay_in_view(qtbot, explorer: Opened) -> 
     w.mode_panel.n_box.setValue(8)
     with qtbot.waitSignal(c.shownChanged, timeout=30_000):
         qtbot.mouseClick(w.mode_panel.sample_button, Qt.MouseButton.LeftButton)
-    assert len(c._played) == 8
+    assert len(c.playback.played) == 8
     assert outside_view(w.viewport, played_points(explorer, every=3)) == 0
     # the view is not framed absurdly far: the skeletons cover a fair part of it
     renderer = w.viewport.plotter.renderer
@@ -113,7 +113,7 @@ def test_drag_across_actions_says_how_and_decodes_each_end_as_its_own_action(qtb
     b = isolated_points(emb, 1, among=bank.indices_of(1))[0]
     drag_map(qtbot, explorer, [emb[a] + t * (emb[b] - emb[a]) for t in np.linspace(0, 1, 4)])
     steps = w.steps_spin.value()
-    qtbot.waitUntil(lambda: len(c.state.shown) == steps and c._drag_from is None, timeout=20_000)
+    qtbot.waitUntil(lambda: len(c.state.shown) == steps and c.gestures.drag_from is None, timeout=20_000)
     qtbot.waitUntil(lambda: "likelier" in w.status_label.text(), timeout=5_000)
     shown = c.state.shown
     assert shown[0].action == 0 and shown[-1].action == 1
@@ -133,9 +133,9 @@ def test_in_sequence_layout_chains_the_steps(qtbot, explorer: Opened) -> None:
     w.layout_combo.setCurrentIndex(w.layout_combo.findData("sequence"))
     a, b = isolated_points(c.state.embedding, 2, among=c.bank.indices_of(0))
     with qtbot.waitSignal(c.shownChanged, timeout=20_000):
-        c.interpolate(*_pair(c, a, b), "test")
+        c.gestures.interpolate(*_pair(c, a, b), "test")
     steps = [d.motion for d in c.state.shown]
-    [played] = c._played
+    [played] = c.playback.played
     assert played.n_frames == sum(m.n_frames for m in steps)
     root = _root(played)
     within = max(np.linalg.norm(np.diff(_root(m)[:, [0, 2]], axis=0), axis=1).max() for m in steps)
@@ -154,6 +154,6 @@ def test_in_sequence_layout_chains_the_steps(qtbot, explorer: Opened) -> None:
 
 
 def _pair(c, a: int, b: int) -> tuple:
-    code_a, action, end_a = c.bank_item(a)
-    code_b, _, end_b = c.bank_item(b)
+    code_a, action, end_a = c.gestures.bank_item(a)
+    code_b, _, end_b = c.gestures.bank_item(b)
     return code_a, code_b, action, end_a, end_b

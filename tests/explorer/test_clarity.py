@@ -66,7 +66,7 @@ def test_strip_skeletons_wear_their_actions_colour(qtbot, explorer: Opened) -> N
     emb = c.state.embedding
     drag_map(qtbot, explorer, [emb[a] + t * (emb[b] - emb[a]) for t in np.linspace(0, 1, 4)])
     steps = w.steps_spin.value()
-    qtbot.waitUntil(lambda: len(c.state.shown) == steps and c._drag_from is None, timeout=20_000)
+    qtbot.waitUntil(lambda: len(c.state.shown) == steps and c.gestures.drag_from is None, timeout=20_000)
     qtbot.wait(50)
     colors = w.viewport.colors().astype(int)
     action_rgb = (category_colors(len(c.bank.action_names))[0, :3] * 255).round()
@@ -103,7 +103,7 @@ def test_map_keeps_one_unit_square_and_frames_a_new_projection(qtbot, explorer: 
 def test_lasso_message_survives_hover_and_play_selection_covers_it(qtbot, explorer: Opened) -> None:
     c, w = explorer.controller, explorer.window
     emb = c.state.embedding
-    c.lasso(np.array([[-1e9, -1e9], [1e9, -1e9], [1e9, 1e9], [-1e9, 1e9]]))
+    c.gestures.lasso(np.array([[-1e9, -1e9], [1e9, -1e9], [1e9, 1e9], [-1e9, 1e9]]))
     assert "Lasso selected" in w.status_label.text()
     index = isolated_points(emb, 1)[0]
     pixel = w.latent_map.data_to_widget(emb[index]).toPoint()
@@ -124,7 +124,7 @@ def test_lasso_message_survives_hover_and_play_selection_covers_it(qtbot, explor
 def test_vtk_keys_do_nothing_in_the_3d_view(qtbot, explorer: Opened) -> None:
     c, w = explorer.controller, explorer.window
     with qtbot.waitSignal(c.shownChanged, timeout=20_000):
-        c.click_point(0)
+        c.gestures.click_point(0)
     interactor = w.viewport.plotter.interactor
     for key in (Qt.Key.Key_3, Qt.Key.Key_W, Qt.Key.Key_S, Qt.Key.Key_E):
         qtbot.keyClick(interactor, key)
@@ -142,7 +142,7 @@ def test_polish_pause_icon_progress_and_empty_view(qtbot, explorer: Opened) -> N
     for actor in w.viewport._actors:  # nothing is drawn before the first decode (no dot at the origin)
         assert not actor.GetVisibility()
     with qtbot.waitSignal(c.shownChanged, timeout=20_000):
-        c.click_point(1)
+        c.gestures.click_point(1)
     assert w.timeline.is_playing() and not w.timeline.play_button.icon().isNull()
     assert w.timeline.play_button.text() == ""
     w.show_progress("Decoding bank codes for motion energy of every code in the bank", 0.5)
@@ -169,7 +169,7 @@ def test_no_stale_star_or_diamonds_after_new_gestures(qtbot, explorer: Opened) -
     a, b = isolated_points(emb, 2)
     drag_map(qtbot, explorer, [emb[a] + t * (emb[b] - emb[a]) for t in np.linspace(0, 1, 4)])
     qtbot.waitUntil(
-        lambda: c._drag_from is None and len(c.state.shown) == w.steps_spin.value(), timeout=20_000
+        lambda: c.gestures.drag_from is None and len(c.state.shown) == w.steps_spin.value(), timeout=20_000
     )
     assert len(w.latent_map._marker.data) == 0, "released on a code: the rings mark the ends, no star"
     with qtbot.waitSignal(c.shownChanged, timeout=20_000):

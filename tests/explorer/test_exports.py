@@ -17,7 +17,7 @@ from tests.explorer.conftest import Opened, close_message_boxes
 
 def _play(qtbot, opened: Opened, index: int) -> None:
     with qtbot.waitSignal(opened.controller.shownChanged, timeout=20_000):
-        opened.controller.click_point(index)
+        opened.controller.gestures.click_point(index)
 
 
 def _walker(opened: Opened) -> int:

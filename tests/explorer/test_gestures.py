@@ -105,7 +105,7 @@ def test_lasso_selects_exactly_the_points_inside(qtbot, explorer: Opened) -> Non
 
 def test_projection_switch_keeps_the_selection(qtbot, explorer: Opened) -> None:
     c, window = explorer.controller, explorer.window
-    c.lasso(np.array([[-1e9, -1e9], [0.0, -1e9], [0.0, 1e9], [-1e9, 1e9]]))
+    c.gestures.lasso(np.array([[-1e9, -1e9], [0.0, -1e9], [0.0, 1e9], [-1e9, 1e9]]))
     selection = c.state.selection
     assert selection
     window.projection_combo.setCurrentIndex(window.projection_combo.findData("tsne"))

@@ -135,7 +135,7 @@ def test_a_long_clip_is_a_path_of_codes_that_plays_in_time_order(
         window.play_selection_action.trigger()
     played = [d.bank_index for d in c.state.shown]
     assert played == list(c.state.selection)[: len(played)] and len(played) == min(len(rows), 12)
-    [chained] = c._played  # in sequence: one motion, each window starting where the last ended
+    [chained] = c.playback.played  # in sequence: one motion, each window starting where the last ended
     step = np.linalg.norm(np.diff(chained.joints[:, chained.skeleton.root, [0, 2]], axis=0), axis=1)
     assert chained.n_frames == sum(d.motion.n_frames for d in c.state.shown)
     assert step.max() < 0.2, "the skeleton jumps between windows"

@@ -59,7 +59,7 @@ def test_map_is_painted_before_the_model_loads(qtbot, open_explorer, tiny_model_
     qtbot.waitUntil(window.has_viewport, timeout=10_000)
     assert len(window.latent_map.visible_rows()) == len(c.bank.codes)
     with qtbot.waitSignal(c.shownChanged, timeout=20_000):
-        c.click_point(0)
+        c.gestures.click_point(0)
 
 
 def test_opening_the_3d_view_does_not_recreate_the_shown_window(qtbot, open_explorer, tiny_model_dir) -> None:

@@ -15,7 +15,7 @@ def _walker(c) -> int:
 
 def _play(qtbot, opened: Opened, index: int) -> None:
     with qtbot.waitSignal(opened.controller.shownChanged, timeout=20_000):
-        opened.controller.click_point(index)
+        opened.controller.gestures.click_point(index)
 
 
 def test_follow_camera_keeps_the_walker_centred(qtbot, explorer: Opened) -> None:
@@ -23,7 +23,7 @@ def test_follow_camera_keeps_the_walker_centred(qtbot, explorer: Opened) -> None
     _play(qtbot, explorer, _walker(c))
     w.follow_camera_action.trigger()
     assert w.viewport.follow
-    motion = c._played[0]
+    motion = c.playback.played[0]
     root = motion.skeleton.root
     for frame in (0, motion.n_frames // 2, motion.n_frames - 1, 3):
         w.timeline.set_frame(frame)
@@ -56,7 +56,7 @@ def test_ghost_count_follows_the_spin_box(qtbot, explorer: Opened) -> None:
     for count in (8, 0, 2):
         w.ghosts_spin.setValue(count)
         assert len(w.viewport.ghost_frames()) == count
-    np.testing.assert_allclose(w.viewport.ghost_frames()[-1], c._played[0].joints[-1], atol=1e-5)
+    np.testing.assert_allclose(w.viewport.ghost_frames()[-1], c.playback.played[0].joints[-1], atol=1e-5)
 
 
 def test_follow_path_button_follows_a_drawn_path_and_refuses_an_unreachable_one(

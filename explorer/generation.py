@@ -1,0 +1,184 @@
+"""Tools that make new codes: samples from the modes, variations, a local mode, an end location, a path
+to follow."""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from engine.errors import ConfigError
+from engine.motion.ops import root_floor_path
+from explorer.state import Decoded, ExtraPoints
+from explorer.workers import Cancel, Progress
+
+if TYPE_CHECKING:
+    from engine import generate
+    from explorer.controller import Controller
+
+
+VARIATIONS = 8
+LOCAL_MODE_SAMPLES = 6
+PANEL_STRATEGIES = {"one_mode": "mode"}  # mode panel key -> engine strategy
+
+
+class Generation:
+    """The generating tools of controller ``c``."""
+
+    def __init__(self, c: Controller) -> None:
+        self.c = c
+
+    def _selection_summary(self) -> tuple[np.ndarray, int, float]:
+        """(centroid code, majority action, radius) of the selection."""
+        sel = np.asarray(self.c.state.selection, dtype=np.int64)
+        if len(sel) == 0:
+            raise ConfigError("select codes first (click a point or draw a lasso)")
+        bank = self.c.bank
+        codes = bank.codes[sel].astype(np.float64)
+        centre = codes.mean(axis=0)
+        action = int(np.bincount(bank.actions[sel]).argmax())
+        spread = float(np.linalg.norm(codes - centre, axis=1).mean())
+        if spread == 0.0:
+            same = bank.codes[bank.indices_of(action)]
+            spread = 0.25 * float(np.median(np.linalg.norm(same - same.mean(axis=0), axis=1)))
+        return centre.astype(np.float32), action, spread
+
+    def sample_variations(self) -> None:
+        """Decode variations around the selection (the engine's ``neighbours``) and put them on the map."""
+        summary = self.c.guard("Cannot sample variations", self._selection_summary)
+        if summary is None:
+            return
+        centre, action, radius = summary
+        loaded, seed = self.c.generator, self.c.new_seed()
+        name = loaded.action_names[action]
+        self.c.run_task(
+            "Sampling variations",
+            lambda _p, _c: loaded.vary(centre, name, VARIATIONS, radius, seed),
+            lambda samples: self._samples_ready(samples, seed, "variation"),
+        )
+
+    def fit_local_mode(self) -> None:
+        """Fit one Gaussian to the selected codes, outline it on the map and sample from it."""
+        sel = np.asarray(self.c.state.selection, dtype=np.int64)
+        if len(sel) < 3:
+            self.c.report_error("Cannot fit a local mode", "select at least 3 codes with the lasso")
+            return
+        from engine import generate
+        from engine.latent.modes import ModeModel
+
+        loaded, bank, with_end = self.c.generator, self.c.bank, self.c.can("end")
+        action = int(np.bincount(bank.actions[sel]).argmax())
+        codes = bank.codes[sel].astype(np.float64)
+        mean = codes.mean(axis=0)
+        cov = np.cov(codes, rowvar=False) + 1e-6 * np.eye(codes.shape[1])
+        local = ModeModel(
+            weights=np.ones(1),
+            means=mean[None],
+            covariances=cov[None],
+            labels=np.zeros(len(sel), dtype=np.int64),
+            silhouette={},
+            k_chosen=1,
+            conventional_mean=mean,
+            conventional_cov=cov,
+        )
+        self.c.map.local_mode = (local, sel)
+        self.c.map.draw_overlays()
+        seed = self.c.new_seed()
+
+        def job(_p: Progress, _c: Cancel) -> list[generate.Sample]:
+            codes, _ = local.sample(LOCAL_MODE_SAMPLES, np.random.default_rng(seed), strategy="mode", mode=0)
+            motions = loaded.decode(codes, loaded.action_names[action])
+            ends = bank.end_location(codes, action) if with_end else [None] * len(codes)
+            return [
+                generate.Sample(c.astype(np.float32), action, -1, e, m)
+                for c, e, m in zip(codes, ends, motions, strict=True)
+            ]
+
+        self.c.run_task("Sampling the local mode", job, lambda s: self._samples_ready(s, seed, "local mode"))
+
+    def sample(self, strategy: str, n: int, mode: int) -> None:
+        """Draw ``n`` samples of the focused action (mode panel's Sample buttons) and show them."""
+        if self.c.state.model is None or self.c.refuse("sample"):
+            return
+        loaded, action, seed = self.c.generator, self.c.state.focus_action, self.c.new_seed()
+        strategy = PANEL_STRATEGIES.get(strategy, strategy)
+        weights = self.c.map.weights.get(action) if strategy == "weights" else None
+        from engine.generators.base import SampleRequest
+
+        request = SampleRequest(
+            loaded.action_names[action],
+            int(n),
+            seed,
+            strategy,
+            None if mode < 0 else int(mode),
+            weights=None if weights is None else tuple(float(w) for w in weights),
+        )
+
+        def job(_p: Progress, _c: Cancel) -> list[generate.Sample]:
+            return loaded.sample(request)
+
+        self.c.run_task(
+            f"Sampling {n} × {loaded.action_names[action]}",
+            job,
+            lambda s: self._samples_ready(s, seed, strategy.replace("_", "-")),
+        )
+
+    def _samples_ready(self, samples: list[generate.Sample], seed: int, what: str) -> None:
+        if not samples:
+            return
+        codes = np.stack([s.code for s in samples]).astype(np.float32)
+        actions = np.array([s.action for s in samples], dtype=np.int64)
+        xy = (
+            self.c.projection.transform(codes) if self.c.projection is not None else np.zeros((len(codes), 2))
+        )
+        self.c.state.extra = ExtraPoints(codes, actions, xy)
+        names = self.c.generator.action_names
+        self.c.state.shown = tuple(
+            Decoded(
+                s.motion,
+                f"{what} {k + 1}/{len(samples)} {names[s.action]}"
+                + (f" mode {s.mode}" if s.mode >= 0 else ""),
+                s.code,
+                s.action,
+                s.end,
+                s.mode if s.mode >= 0 else None,
+                seed,
+            )
+            for k, s in enumerate(samples)
+        )
+
+    def set_end(self, x: float, z: float) -> None:
+        """Re-decode the current code with its end location moved to floor point (x, z)."""
+        current = next((d for d in self.c.state.shown if d.code is not None), None)
+        if self.c.refuse("end") or current is None:
+            return
+        label = current.label.split(" · end (")[0]
+        self.c.gestures.decode_code(
+            current.code, current.action, f"{label} · end ({x:.2f}, {z:.2f})", np.array([x, z])
+        )
+
+    def follow_path(self, path: object) -> None:
+        """Ask the engine for the code of the focused action whose root path follows ``path`` (K, 2)."""
+        if self.c.state.model is None or self.c.refuse("follow_path"):
+            return
+        shown = next((d for d in self.c.state.shown if d.code is not None), None)
+        loaded = self.c.generator
+        action = shown.action if shown is not None else self.c.state.focus_action  # the motion playing
+        path_xz = np.asarray(path, dtype=np.float64)
+        length = float(np.linalg.norm(np.diff(path_xz, axis=0), axis=1).sum())
+
+        def job(progress: Progress, _c: Cancel) -> generate.PathResult:
+            progress("Optimising a code to follow the path", 0.0)
+            return loaded.follow_path(path_xz, loaded.action_names[action])
+
+        def done(result: generate.PathResult) -> None:
+            share = result.path_error_m / max(length, 1e-9)
+            label = (
+                f"follow path · {loaded.action_names[action]} · error {result.path_error_m:.3f} m "
+                f"({share:.0%} of {length:.1f} m)"
+            )
+            item = Decoded(result.motion, label, result.code, action, result.end)
+            self.c.state.shown = (item,)
+            self.c.window.trajectory.set_generated(root_floor_path(result.motion), result.path_error_m)
+
+        self.c.run_task("Following the path", job, done)
