@@ -120,10 +120,10 @@ def create_explorer(
             "File ▸ Open model folder… or start with --model DIR."
         )
     else:
-        controller.show_preview(target)
-        explorer.pending.append(lambda: controller.open_model(target))
+        controller.loader.show_preview(target)
+        explorer.pending.append(lambda: controller.loader.open_model(target))
     if data is not None:
-        explorer.pending.append(lambda: controller.open_data(data))
+        explorer.pending.append(lambda: controller.loader.open_data(data))
     explorer.pending.append(
         lambda: QTimer.singleShot(0, window, lambda: window.isVisible() and window.viewport)
     )
@@ -160,8 +160,8 @@ def _schedule_screenshot(
         if busy and time.monotonic() < deadline:
             QTimer.singleShot(200, attempt)
             return
-        if c.load_error or c.state.model is None:
-            why = c.load_error or "no model was loaded"
+        if c.loader.load_error or c.state.model is None:
+            why = c.loader.load_error or "no model was loaded"
             print(f"odmo-explorer: error: {why}; no screenshot written", file=sys.stderr)
             codes.append(2)
             app.quit()

@@ -7,7 +7,6 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from engine.errors import ConfigError
 from engine.motion.ops import root_floor_path
 from explorer.state import Decoded, ExtraPoints
 from explorer.workers import Cancel, Progress
@@ -28,24 +27,13 @@ class Generation:
     def __init__(self, c: Controller) -> None:
         self.c = c
 
-    def _selection_summary(self) -> tuple[np.ndarray, int, float]:
-        """(centroid code, majority action, radius) of the selection."""
-        sel = np.asarray(self.c.state.selection, dtype=np.int64)
-        if len(sel) == 0:
-            raise ConfigError("select codes first (click a point or draw a lasso)")
-        bank = self.c.bank
-        codes = bank.codes[sel].astype(np.float64)
-        centre = codes.mean(axis=0)
-        action = int(np.bincount(bank.actions[sel]).argmax())
-        spread = float(np.linalg.norm(codes - centre, axis=1).mean())
-        if spread == 0.0:
-            same = bank.codes[bank.indices_of(action)]
-            spread = 0.25 * float(np.median(np.linalg.norm(same - same.mean(axis=0), axis=1)))
-        return centre.astype(np.float32), action, spread
-
     def sample_variations(self) -> None:
         """Decode variations around the selection (the engine's ``neighbours``) and put them on the map."""
-        summary = self.c.guard("Cannot sample variations", self._selection_summary)
+        from engine.latent.neighbours import selection_summary
+
+        summary = self.c.guard(
+            "Cannot sample variations", lambda: selection_summary(self.c.bank, self.c.state.selection)
+        )
         if summary is None:
             return
         centre, action, radius = summary
@@ -64,23 +52,11 @@ class Generation:
             self.c.report_error("Cannot fit a local mode", "select at least 3 codes with the lasso")
             return
         from engine import generate
-        from engine.latent.modes import ModeModel
+        from engine.latent.modes import single_gaussian
 
         loaded, bank, with_end = self.c.generator, self.c.bank, self.c.can("end")
         action = int(np.bincount(bank.actions[sel]).argmax())
-        codes = bank.codes[sel].astype(np.float64)
-        mean = codes.mean(axis=0)
-        cov = np.cov(codes, rowvar=False) + 1e-6 * np.eye(codes.shape[1])
-        local = ModeModel(
-            weights=np.ones(1),
-            means=mean[None],
-            covariances=cov[None],
-            labels=np.zeros(len(sel), dtype=np.int64),
-            silhouette={},
-            k_chosen=1,
-            conventional_mean=mean,
-            conventional_cov=cov,
-        )
+        local = single_gaussian(bank.codes[sel])
         self.c.map.local_mode = (local, sel)
         self.c.map.draw_overlays()
         seed = self.c.new_seed()

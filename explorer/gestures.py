@@ -10,11 +10,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from engine.errors import ConfigError
-from explorer.decoding import decode_one, full_end
-from explorer.map_layers import (
-    mode_labels,
-)
-from explorer.state import Decoded
+from explorer.requests import BankDecode, CodeDecode, StripDecode, frozen_array
 
 if TYPE_CHECKING:
     from engine.latent.bank import LatentBank
@@ -66,26 +62,13 @@ class Gestures:
         self._decode_bank([int(index)], with_real=True)
 
     def _decode_bank(self, indices: Sequence[int], with_real: bool = False, note: str = "") -> None:
-        bank, real, generator = self.c.bank, self.c.real_clips, self.c.generator
-
-        def job() -> tuple[Decoded, ...]:
-            items = []
-            labels = mode_labels(bank)
-            for i in indices:
-                code, action, end = self.bank_item(i)
-                mode = None if labels[i] < 0 else int(labels[i])
-                motion = decode_one(generator, code, action, end, mode)
-                name = f"#{i} {bank.sources[i]}"
-                items.append(Decoded(motion, f"{name} (decoded)", code, action, end, mode, None, i, note))
-                source = str(bank.sources[i])  # the bank may name the clip from another root folder
-                clip = real.get(source, real.get(Path(source).stem)) if with_real else None
-                if clip is not None:  # the window the code encodes, placed and turned as the decode is
-                    start = bank.meta[i].get("window_start") if "window_stride" in bank.meta[i] else None
-                    window = generator.real_window(clip, start)
-                    items.append(Decoded(window, f"{name} (real clip)", None, action))
-            return tuple(items)
-
-        self.c.decoder.submit(job)
+        bank, real = self.c.bank, self.c.real_clips
+        clips = []
+        for i in indices:
+            source = str(bank.sources[i])  # the bank may name the clip from another root folder
+            clips.append(real.get(source, real.get(Path(source).stem)) if with_real else None)
+        request = BankDecode(self.c.generator, bank, tuple(int(i) for i in indices), tuple(clips), note)
+        self.c.decoder.submit(request.run)
 
     def click_empty(self, x: float, y: float) -> None:
         """Decode the code under map position (x, y) for the nearest visible point's action; mark it."""
@@ -118,19 +101,18 @@ class Gestures:
         xy: np.ndarray | None = None,
     ) -> int:
         """Decode ``code`` (or, when None, the inverse projection of map point ``xy``) in the worker."""
-        loaded, bank, projection = self.c.generator, self.c.bank, self.c.projection
-
-        def job() -> tuple[Decoded, ...]:
-            nonlocal code
-            if code is None:
-                code = projection.inverse_transform(np.asarray(xy, np.float64)[None])[0].astype(np.float32)
-            e = full_end(loaded, code, action, end)
-            modes = bank.modes.get(action)
-            mode = None if modes is None else int(modes.predict(code[None])[0])
-            motion = decode_one(loaded, code, action, e, mode)
-            return (Decoded(motion, label, code, action, e, mode),)
-
-        return self.c.decoder.submit(job)
+        c = self.c
+        request = CodeDecode(
+            c.generator,
+            c.bank,
+            c.projection,
+            int(action),
+            label,
+            frozen_array(code),
+            frozen_array(xy, np.float64),
+            frozen_array(end),
+        )
+        return c.decoder.submit(request.run)
 
     def drag_start(self, index: int) -> None:
         """Start dragging from bank code ``index``."""
@@ -203,36 +185,22 @@ class Gestures:
         Between two actions (``action_b`` given and different) the engine's cross-action rule is used
         and the status bar says so: each step is decoded as the likelier of the two actions.
         """
-        loaded, steps = self.c.generator, self.c.window.steps_spin.value()
         across = action_b is not None and action_b != action
-        names = loaded.action_names
         if self.c.refuse("interpolate_across" if across else "interpolate"):
             return
-        ends = {"end_a": end_a, "end_b": end_b} if self.c.can("end") else {}
-
-        def job() -> tuple[Decoded, ...]:
-            from engine import generate
-
-            if across:
-                pair = (code_a, names[action], code_b, names[action_b])
-                samples = loaded.interpolate_across(*pair, steps, **ends)
-            else:
-                samples = loaded.interpolate(code_a, code_b, names[action], steps, **ends)
-            note = f"{names[action]} → {names[action_b]}: {generate.ACROSS_RULE}" if across else ""
-            return tuple(
-                Decoded(
-                    s.motion,
-                    f"{what} step {k + 1}/{steps} {names[s.action]}",
-                    s.code,
-                    s.action,
-                    s.end,
-                    s.mode,
-                    note=note,
-                )
-                for k, s in enumerate(samples)
-            )
-
-        self.c.decoder.submit(job)
+        with_end = self.c.can("end")
+        request = StripDecode(
+            self.c.generator,
+            frozen_array(code_a),
+            frozen_array(code_b),
+            int(action),
+            int(action if action_b is None else action_b),
+            self.c.window.steps_spin.value(),
+            what,
+            frozen_array(end_a) if with_end else None,
+            frozen_array(end_b) if with_end else None,
+        )
+        self.c.decoder.submit(request.run)
 
     def lasso(self, polygon: object) -> None:
         """Select the visible bank codes inside ``polygon`` (M, 2)."""

@@ -32,14 +32,6 @@ def mode_labels(bank: LatentBank) -> np.ndarray:
     return labels
 
 
-def motion_energy(joints: np.ndarray, fps: float) -> np.ndarray:
-    """(B,) mean joint speed in m/s of motions ``joints`` (B, T, J, 3)."""
-    if joints.shape[1] < 2:
-        return np.zeros(len(joints))
-    speed = np.linalg.norm(np.diff(joints, axis=1), axis=-1) * fps
-    return speed.mean(axis=(1, 2))
-
-
 SCALAR_LEVELS = 64  # distinct colours of a scalar colouring: the map draws one symbol image per colour
 
 

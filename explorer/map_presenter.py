@@ -13,7 +13,6 @@ from explorer.map_layers import (
     gaussian_outline,
     mode_note,
     mode_overlays,
-    motion_energy,
     point_colors,
     tooltips,
 )
@@ -118,6 +117,8 @@ class MapPresenter:
         loaded, bank, with_end = self.c.generator, self.c.bank, self.c.can("end")
 
         def job(progress: Progress, cancel: Cancel) -> np.ndarray:
+            from engine.motion.ops import motion_energy
+
             energy = np.zeros(len(bank.codes))
             done, chunk = 0, 256
             for action in range(len(bank.action_names)):

@@ -228,6 +228,28 @@ def _fit_gmm(x: np.ndarray, k: int, seed: int) -> GaussianMixture:
     return gmm
 
 
+def single_gaussian(
+    codes: np.ndarray, silhouette: dict[int, float] | None = None, k_chosen: int = 1
+) -> ModeModel:
+    """One mode: the Gaussian (maximum-likelihood mean and covariance, ``REG_COVAR`` on the diagonal) of
+    codes (N, D), e.g. a local mode fitted to a selection."""
+    x = _check_codes(codes)
+    if len(x) == 0:
+        raise ConfigError("cannot fit a Gaussian to no codes")
+    mean = x.mean(axis=0)
+    cov = np.cov(x, rowvar=False, bias=True).reshape(x.shape[1], x.shape[1]) + REG_COVAR * np.eye(x.shape[1])
+    return ModeModel(
+        weights=np.ones(1),
+        means=mean[None],
+        covariances=cov[None],
+        labels=np.zeros(len(x), dtype=np.int64),
+        silhouette={} if silhouette is None else silhouette,
+        k_chosen=k_chosen,
+        conventional_mean=mean,
+        conventional_cov=cov,
+    )
+
+
 def discover_modes(
     codes: np.ndarray,
     k_range: tuple[int, int] = (3, 11),
@@ -252,10 +274,6 @@ def discover_modes(
         raise ConfigError(f"k_range must satisfy 1 <= min <= max, got {k_range}")
     if not ratio > 0.0:
         raise ConfigError(f"ratio must be positive, got {ratio}")
-    conv_mean = x.mean(axis=0)
-    conv_cov = np.cov(x, rowvar=False, bias=True).reshape(x.shape[1], x.shape[1])
-    conv_cov = conv_cov + REG_COVAR * np.eye(x.shape[1])
-
     fits: dict[int, GaussianMixture] = {}
     scores: dict[int, float] = {}
     for k in range(k_min, k_max + 1):
@@ -266,16 +284,8 @@ def discover_modes(
         scores[k] = _silhouette(x, fits[k].predict(x), silhouette_sample, seed)
     chosen = choose_k(scores, ratio)
 
-    single = ModeModel(
-        weights=np.ones(1),
-        means=conv_mean[None],
-        covariances=conv_cov[None],
-        labels=np.zeros(len(x), dtype=np.int64),
-        silhouette=scores,
-        k_chosen=1 if chosen is None else chosen,
-        conventional_mean=conv_mean,
-        conventional_cov=conv_cov,
-    )
+    single = single_gaussian(x, scores, 1 if chosen is None else chosen)
+    conv_mean, conv_cov = single.conventional_mean, single.conventional_cov
     if chosen is None:
         log.info("no K in %s could be scored for %d codes: one mode", k_range, len(x))
         return single

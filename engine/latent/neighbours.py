@@ -1,10 +1,16 @@
-"""Neighbours in the full latent space and small subsets that cover a selection (numpy only)."""
+"""Neighbours in the full latent space, small subsets that cover a selection, and its summary (numpy
+only)."""
 
 from __future__ import annotations
+
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from engine.errors import ConfigError
+
+if TYPE_CHECKING:
+    from engine.latent.bank import LatentBank
 
 
 def nearest(
@@ -70,3 +76,19 @@ def spread_subset(codes: np.ndarray, groups: np.ndarray, k: int) -> np.ndarray:
             members = np.flatnonzero(inverse == g)
             picks.append(members[_farthest_points(codes[members], int(share))])
     return np.sort(np.concatenate(picks))
+
+
+def selection_summary(bank: LatentBank, indices: np.ndarray) -> tuple[np.ndarray, int, float]:
+    """(centroid code, majority action, radius) of bank codes ``indices``: the radius is their mean
+    distance to the centroid, or a quarter of the action's median spread for a single code."""
+    sel = np.asarray(indices, dtype=np.int64).reshape(-1)
+    if len(sel) == 0:
+        raise ConfigError("select codes first (click a point or draw a lasso)")
+    codes = bank.codes[sel].astype(np.float64)
+    centre = codes.mean(axis=0)
+    action = int(np.bincount(bank.actions[sel]).argmax())
+    spread = float(np.linalg.norm(codes - centre, axis=1).mean())
+    if spread == 0.0:
+        same = bank.codes[bank.indices_of(action)]
+        spread = 0.25 * float(np.median(np.linalg.norm(same - same.mean(axis=0), axis=1)))
+    return centre.astype(np.float32), action, spread

@@ -1,4 +1,5 @@
-"""Operations on motions that views and tools share: the root's floor path, equal-length joint stacks."""
+"""Operations on motions that views and tools share: the root's floor path, equal-length joint stacks,
+motion energy."""
 
 from __future__ import annotations
 
@@ -28,3 +29,11 @@ def padded_joints(motions: Sequence[Motion], length: int | None = None) -> np.nd
     return np.stack(
         [np.concatenate([m.joints, np.repeat(m.joints[-1:], length - m.n_frames, 0)]) for m in motions]
     )
+
+
+def motion_energy(joints: np.ndarray, fps: float) -> np.ndarray:
+    """(B,) mean joint speed in m/s of motions ``joints`` (B, T, J, 3)."""
+    if joints.shape[1] < 2:
+        return np.zeros(len(joints))
+    speed = np.linalg.norm(np.diff(joints, axis=1), axis=-1) * fps
+    return speed.mean(axis=(1, 2))

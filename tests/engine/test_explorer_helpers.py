@@ -1,4 +1,5 @@
-"""Engine helpers of the explorer: chaining motions, neighbours, covering subsets, windows, cross-action."""
+"""Engine helpers of the explorer: chaining motions, neighbours, covering subsets, windows, cross-action,
+the selection summary and the local mode."""
 
 from __future__ import annotations
 
@@ -15,7 +16,8 @@ from engine.generate import (
     step_actions,
     window_starts,
 )
-from engine.latent.neighbours import nearest, spread_subset
+from engine.latent.modes import single_gaussian
+from engine.latent.neighbours import nearest, selection_summary, spread_subset
 from engine.modelio import LoadedModel, load_model
 from engine.motion.motion import Motion
 from engine.train.windows import canonicalize
@@ -123,3 +125,32 @@ def test_cross_action_strip_keeps_each_endpoints_action(loaded) -> None:
     assert [s.action for s in samples] == actions.tolist()
     near_a = step_actions(loaded, np.stack([bank.codes[a], bank.codes[a], bank.codes[b]]), 0, 1)
     assert near_a[1] == 0
+
+
+def test_selection_summary_is_centroid_majority_and_mean_distance(loaded) -> None:
+    bank = loaded.bank
+    walk = bank.indices_of(0)[:3]
+    picked = np.concatenate([walk, bank.indices_of(1)[:1]])
+    centre, action, radius = selection_summary(bank, picked)
+    codes = bank.codes[picked].astype(np.float64)
+    np.testing.assert_allclose(centre, codes.mean(axis=0), rtol=1e-6)
+    assert action == 0  # three of four are walks
+    assert radius == pytest.approx(np.mean([np.linalg.norm(c - codes.mean(axis=0)) for c in codes]))
+    one = selection_summary(bank, picked[:1])
+    same = bank.codes[bank.indices_of(0)].astype(np.float64)
+    assert one[2] == pytest.approx(
+        0.25 * np.median(np.linalg.norm(same - same.mean(axis=0), axis=1)), rel=1e-6
+    )
+    with pytest.raises(ConfigError, match="select codes first"):
+        selection_summary(bank, [])
+
+
+def test_single_gaussian_is_the_maximum_likelihood_fit() -> None:
+    codes = np.random.default_rng(0).normal([1.0, -2.0], [0.5, 2.0], size=(4000, 2))
+    mode = single_gaussian(codes)
+    assert mode.n_modes == 1 and mode.sizes().tolist() == [4000]
+    np.testing.assert_allclose(mode.means[0], [1.0, -2.0], atol=0.1)
+    np.testing.assert_allclose(np.sqrt(np.diag(mode.covariances[0])), [0.5, 2.0], rtol=0.05)
+    np.testing.assert_allclose(mode.covariances[0], np.cov(codes.T, bias=True) + 1e-6 * np.eye(2), rtol=1e-9)
+    drawn, labels = mode.sample(5, np.random.default_rng(1), strategy="mode", mode=0)
+    assert drawn.shape == (5, 2) and set(labels.tolist()) == {0}

@@ -7,7 +7,7 @@ import pytest
 
 from engine.errors import ConfigError
 from engine.motion.motion import Motion
-from engine.motion.ops import padded_joints, root_floor_path
+from engine.motion.ops import motion_energy, padded_joints, root_floor_path
 from engine.motion.skeleton import Skeleton
 
 
@@ -37,3 +37,11 @@ def test_padded_joints_hold_the_last_frame() -> None:
         padded_joints([long], 3)
     with pytest.raises(ConfigError, match="no motions"):
         padded_joints([])
+
+
+def test_motion_energy_is_the_mean_joint_speed() -> None:
+    moving = _motion(5, 0.0)  # both joints move by (1, 0, -2) a frame at 20 fps
+    still = moving.with_joints(np.repeat(moving.joints[:1], 5, axis=0))
+    energy = motion_energy(np.stack([moving.joints, still.joints]), 20.0)
+    np.testing.assert_allclose(energy, [np.sqrt(5.0) * 20.0, 0.0], rtol=1e-6)
+    assert motion_energy(moving.joints[None, :1], 20.0).tolist() == [0.0]

@@ -60,7 +60,7 @@ def test_tools_the_kind_lacks_are_off_with_the_reason(
     assert "cannot set where the motion ends" in window.status_label.text()
 
     with qtbot.waitSignal(c.modelLoaded, timeout=60_000):
-        c.open_model(tiny_model_dir)
+        c.loader.open_model(tiny_model_dir)
     assert window.trajectory.isEnabled() and window.trajectory.toolTip() == ""
 
 

@@ -84,7 +84,7 @@ def test_broken_model_folder_shows_error_and_keeps_running(qtbot, explorer: Open
     (broken / "model.json").write_text("{ not json")
     before = c.state.model
     with qtbot.waitSignal(c.errorOccurred, timeout=20_000) as blocker:
-        c.open_model(broken)
+        c.loader.open_model(broken)
     assert "broken" in blocker.args[0]
     texts = close_message_boxes()
     assert texts and "broken" in texts[0]
@@ -162,7 +162,7 @@ def test_a_damaged_latent_bank_gives_a_message_and_the_app_keeps_running(
         np.savez(handle, **arrays)
     before = c.state.model
     with qtbot.waitSignal(c.errorOccurred, timeout=30_000) as blocker:
-        c.open_model(damaged)
+        c.loader.open_model(damaged)
     assert "damaged" in blocker.args[0] or "bank" in blocker.args[0]
     assert close_message_boxes()
     qtbot.wait(100)

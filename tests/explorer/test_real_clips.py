@@ -52,7 +52,7 @@ def test_real_clip_is_the_encoded_window_at_the_decodes_start_and_heading(
     opened: Opened = open_explorer(model)
     c = opened.controller
     qtbot.waitUntil(lambda: c.state.model is not None, timeout=60_000)
-    c.open_data(data)
+    c.loader.open_data(data)
     qtbot.waitUntil(lambda: c.state.data_dir is not None, timeout=60_000)
     assert f"{len(list(data.glob('*.bvh')))} clips" in opened.window.status_label.text()
     walks = np.flatnonzero(c.bank.actions == c.bank.action_names.index("walk"))
@@ -112,7 +112,7 @@ def test_a_long_clip_is_a_path_of_codes_that_plays_in_time_order(
     opened: Opened = open_explorer(strided_model)
     window, c = opened.window, opened.controller
     qtbot.waitUntil(lambda: c.state.model is not None, timeout=60_000)
-    c.open_data(data)
+    c.loader.open_data(data)
     qtbot.waitUntil(lambda: c.state.data_dir is not None, timeout=60_000)
     counts = {s: int((c.bank.sources == s).sum()) for s in set(c.bank.sources)}
     source = max(counts, key=counts.get)
