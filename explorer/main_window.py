@@ -11,22 +11,19 @@ from __future__ import annotations
 from typing import TYPE_CHECKING
 
 from PySide6.QtCore import QByteArray, QEvent, QObject, QSettings, Qt, QTimer, Signal
-from PySide6.QtGui import QCloseEvent, QKeySequence
+from PySide6.QtGui import QCloseEvent
 from PySide6.QtOpenGLWidgets import QOpenGLWidget
 from PySide6.QtWidgets import (
-    QComboBox,
     QDockWidget,
     QLabel,
     QMainWindow,
     QMessageBox,
     QProgressBar,
-    QSpinBox,
-    QToolBar,
     QToolButton,
     QWidget,
 )
 
-from explorer.state import COLOR_BY, PROJECTIONS
+from explorer.window_actions import build_menus, build_toolbar
 from widgets.find_panel import FindPanel
 from widgets.latent_map import LatentMap
 from widgets.mode_panel import ModePanel
@@ -39,7 +36,6 @@ if TYPE_CHECKING:
 SETTINGS_GEOMETRY = "window/geometry"
 SETTINGS_STATE = "window/state"
 _LAYOUT_VERSION = 2  # 2: the Find panel
-PROJECTION_LABELS = {"pca": "PCA", "tsne": "t-SNE", "umap": "UMAP"}
 
 
 class MainWindow(QMainWindow):
@@ -90,8 +86,8 @@ class MainWindow(QMainWindow):
         self.resizeDocks([self.mode_dock], [330], Qt.Horizontal)
         self.resizeDocks([self.timeline_dock], [40], Qt.Vertical)
 
-        self._build_toolbar()
-        self._build_menus()
+        build_toolbar(self)
+        build_menus(self)
         self._build_status_bar()
         self._default_state = self.saveState(_LAYOUT_VERSION)
         self.restore_layout()
@@ -132,108 +128,6 @@ class MainWindow(QMainWindow):
         )
         self.addDockWidget(area, dock)
         return dock
-
-    def _build_toolbar(self) -> None:
-        bar = QToolBar("Map", self)
-        bar.setObjectName("toolbar_map")
-        self.addToolBar(Qt.TopToolBarArea, bar)
-
-        bar.addWidget(QLabel(" Projection "))
-        self.projection_combo = QComboBox()
-        for name in PROJECTIONS:
-            self.projection_combo.addItem(PROJECTION_LABELS[name], name)
-        self.projection_combo.setToolTip("Map projection: precomputed ones switch instantly")
-        bar.addWidget(self.projection_combo)
-
-        bar.addWidget(QLabel("  Colour by "))
-        self.color_combo = QComboBox()
-        for name in COLOR_BY:
-            self.color_combo.addItem(name, name)
-        bar.addWidget(self.color_combo)
-
-        bar.addSeparator()
-        bar.addWidget(QLabel(" Action "))
-        self.action_combo = QComboBox()
-        self.action_combo.setToolTip("Action for the mode panel, sampling and empty-space decoding")
-        bar.addWidget(self.action_combo)
-
-        bar.addSeparator()
-        self.steps_spin = _spin_box(
-            bar,
-            "Strip steps",
-            (2, 16),
-            5,
-            "Number of motions in the interpolation strip a drag leaves behind",
-        )
-        self.layout_combo = QComboBox()
-        self.layout_combo.addItem("side by side", "side_by_side")
-        self.layout_combo.addItem("overlaid", "overlay")
-        self.layout_combo.addItem("in sequence", "sequence")
-        self.layout_combo.setToolTip("How several motions are shown")
-        bar.addWidget(self.layout_combo)
-        self.ghosts_spin = _spin_box(
-            bar, "Ghosts", (0, 16), 4, "Faint poses drawn along a single motion (0: none)"
-        )
-        self.stride_spin = _spin_box(
-            bar,
-            "Encode stride",
-            (1, 600),
-            30,
-            "Frames between the windows a long clip is encoded as (one code each)",
-            suffix=" frames",
-        )
-
-    def _build_menus(self) -> None:
-        file_menu = self.menuBar().addMenu("&File")
-        file_menu.setToolTipsVisible(True)
-        self.open_model_action = file_menu.addAction("Open &model folder…")
-        self.open_model_action.setShortcut(QKeySequence.Open)
-        self.recent_menu = file_menu.addMenu("Open &recent model")
-        self.bundled_menu = file_menu.addMenu("&Bundled models")
-        self.open_data_action = file_menu.addAction("Open &dataset folder…")
-        self.encode_action = file_menu.addAction("E&ncode clips… (or drop files on the map)")
-        file_menu.addSeparator()
-        self.export_motion_action = file_menu.addAction("&Export shown motion(s) (BVH / NPZ)…")
-        self.export_motion_action.setShortcut(QKeySequence("Ctrl+E"))
-        self.export_timelapse_action = file_menu.addAction("Export &time-lapse strip (PNG)…")
-        self.export_map_action = file_menu.addAction("Export &map (PNG)…")
-        self.export_video_action = file_menu.addAction("Export 3-D &video (MP4 / GIF)…")
-        self.export_timelapse_video_action = file_menu.addAction("Export time-lapse v&ideo (MP4 / GIF)…")
-        file_menu.addSeparator()
-        self.quit_action = file_menu.addAction("&Quit")
-        self.quit_action.setShortcut(QKeySequence.Quit)
-        self.quit_action.triggered.connect(self.close)
-
-        sel = self.menuBar().addMenu("&Selection")
-        sel.setToolTipsVisible(True)
-        self.select_clip_action = sel.addAction("Select the &clip's windows")
-        self.select_clip_action.setToolTip("Select every code of the playing code's clip, in time order")
-        self.play_selection_action = sel.addAction("&Play selection together")
-        self.variations_action = sel.addAction("Sample &variations around selection")
-        self.fit_mode_action = sel.addAction("&Fit a local mode to selection")
-        self.export_selection_action = sel.addAction("E&xport selection (BVH / NPZ)…")
-        sel.addSeparator()
-        self.clear_selection_action = sel.addAction("&Clear selection and samples")
-        self.clear_selection_action.setShortcut(QKeySequence(Qt.Key_Escape))
-
-        view = self.menuBar().addMenu("&View")
-        for dock in (
-            self.viewport_dock,
-            self.timeline_dock,
-            self.mode_dock,
-            self.find_dock,
-            self.trajectory_dock,
-        ):
-            view.addAction(dock.toggleViewAction())
-        view.addSeparator()
-        self.reset_camera_action = view.addAction("Reset &camera")
-        self.follow_camera_action = view.addAction("&Follow the skeleton")
-        self.follow_camera_action.setCheckable(True)
-        self.labels_action = view.addAction("&Labels over skeletons")
-        self.labels_action.setCheckable(True)
-        self.labels_action.setChecked(True)
-        self.reset_layout_action = view.addAction("&Reset panel layout")
-        self.reset_layout_action.triggered.connect(self.reset_layout)
 
     def _build_status_bar(self) -> None:
         status = self.statusBar()
@@ -342,17 +236,3 @@ class _FirstPaint(QObject):
             watched.removeEventFilter(self)
             QTimer.singleShot(0, self._window.mapPainted.emit)
         return False
-
-
-def _spin_box(
-    bar: QToolBar, label: str, bounds: tuple[int, int], value: int, tip: str, suffix: str = ""
-) -> QSpinBox:
-    """A labelled integer spin box added to the toolbar ``bar``."""
-    bar.addWidget(QLabel(f" {label} "))
-    spin = QSpinBox()
-    spin.setRange(*bounds)
-    spin.setValue(value)
-    spin.setSuffix(suffix)
-    spin.setToolTip(tip)
-    bar.addWidget(spin)
-    return spin

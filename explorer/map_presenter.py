@@ -17,6 +17,7 @@ from explorer.map_layers import (
     tooltips,
 )
 from explorer.state import ExtraPoints
+from explorer.window_actions import PROJECTION_LABELS
 from explorer.workers import Cancel, Progress
 
 if TYPE_CHECKING:
@@ -45,7 +46,7 @@ class MapPresenter:
         index = self.c.window.projection_combo.findData(name)
         if index >= 0 and index != self.c.window.projection_combo.currentIndex():
             self.c.window.projection_combo.setCurrentIndex(index)
-        label = {"pca": "PCA", "tsne": "t-SNE", "umap": "UMAP"}.get(name, name)
+        label = PROJECTION_LABELS.get(name, name)
         self.c.window.latent_map.set_axis_names(f"{label} 1", f"{label} 2")
         if self.c.state.model is None:
             return

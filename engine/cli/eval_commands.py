@@ -144,12 +144,13 @@ def format_per_action(result: dict[str, Any]) -> str:
 
 def _cmd_eval(args: argparse.Namespace) -> int:
     from engine.fileio import atomic_write_text
+    from engine.generators import open_generator
+    from engine.metrics.by_kind import evaluate_generator
     from engine.metrics.classifier import META_FILE, load_classifier
-    from engine.metrics.evaluate import check_compatible, evaluate
-    from engine.modelio import load_model
+    from engine.metrics.evaluate import check_compatible
     from engine.motion.datasets import drop_extra_joints
 
-    loaded = load_model(args.model)
+    loaded = open_generator(args.model)
     clf_dir = args.classifier
     if clf_dir is None and (Path(args.model) / "classifier" / META_FILE).is_file():
         clf_dir = Path(args.model) / "classifier"
@@ -158,7 +159,7 @@ def _cmd_eval(args: argparse.Namespace) -> int:
     clips = [drop_extra_joints(clip, loaded.skeleton.names) for clip in data.clips]
     check_compatible(loaded, clips, classifier)  # fail before the progress bar appears
     with _bar("evaluating") as progress:
-        result = evaluate(
+        result = evaluate_generator(
             loaded,
             clips,
             classifier,
@@ -221,7 +222,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     e.add_argument("--classifier", type=Path, help="classifier folder (from odmo train-classifier)")
     e.add_argument("--repeats", type=positive_int, default=10, help="sample sets for the intervals (10)")
     e.add_argument("--n-per-action", type=positive_int, default=50, help="motions per action and set (50)")
-    e.add_argument("--strategy", default="mode_preserving", choices=("mode_preserving", "conventional"))
+    e.add_argument(
+        "--strategy",
+        choices=("mode_preserving", "conventional"),
+        help="how ODMO draws codes (default mode_preserving); Action2Motion samples from its prior",
+    )
     e.add_argument("--json", type=Path, help="write the results as JSON here")
     e.add_argument("--seed", type=int, default=0, help="random seed (0)")
     _add_label_options(e)

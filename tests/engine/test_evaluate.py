@@ -11,9 +11,12 @@ import pytest
 
 import engine.cli
 from engine.errors import ConfigError
+from engine.generators.a2m import load_a2m
+from engine.metrics.a2m_eval import evaluate_a2m
 from engine.metrics.classifier import Classifier, train_classifier
 from engine.metrics.evaluate import evaluate, evaluate_sets, report
 from engine.modelio import load_model
+from engine.motion.datasets import load_folder
 from engine.motion.motion import Motion
 from engine.train.windows import crop_windows, prepare_clips
 from tests.fixtures.procedural import PROCEDURAL_ACTIONS
@@ -160,6 +163,25 @@ def test_cli_train_classifier_and_eval(
     assert "hand speed" in table and "walk" in table
     assert set(result["generated"]["accuracy"]) == {"mean", "ci95"}
     assert result["generated"].keys() >= REAL_KEYS | MODEL_KEYS | CONTROL_KEYS
+
+
+def test_cli_eval_takes_any_kind(tiny_a2m_dir: Path, procedural_clips, tmp_path: Path, capsys) -> None:
+    data = _write_folder(procedural_clips, tmp_path / "real")
+    out = tmp_path / "eval.json"
+    argv = ["eval", "--model", str(tiny_a2m_dir), "--real", str(data), "--labels", "labels.csv"]
+    argv += ["--repeats", "2", "--n-per-action", "5", "--json", str(out)]
+    assert engine.cli.main(argv) == 0
+    clips = load_folder(data, labels="labels.csv").clips
+    expected = evaluate_a2m(load_a2m(tiny_a2m_dir), clips, None, repeats=2, n_per_action=5, seed=0)
+    written = json.loads(out.read_text())
+    for row in ("real", "generated"):
+        for metric, value in expected[row].items():
+            if np.isfinite(value["mean"]):
+                assert written[row][metric]["mean"] == pytest.approx(value["mean"], rel=1e-5), metric
+    capsys.readouterr()
+    assert engine.cli.main([*argv, "--strategy", "conventional"]) == 1
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "learned prior" in err
 
 
 def test_cli_errors_are_one_line(

@@ -1,0 +1,47 @@
+"""The evaluation of any generator kind: each kind's own procedure behind one call."""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from typing import TYPE_CHECKING, Any
+
+from engine.errors import ConfigError
+
+if TYPE_CHECKING:
+    from engine.generators.base import Generator
+    from engine.metrics.classifier import Classifier
+    from engine.motion.motion import Motion
+
+
+def evaluate_generator(
+    generator: Generator,
+    real_clips: Sequence[Motion],
+    classifier: Classifier | None,
+    *,
+    repeats: int = 10,
+    n_per_action: int = 50,
+    seed: int = 0,
+    strategy: str | None = None,
+    progress: Callable[[str, float], None] | None = None,
+) -> dict[str, Any]:
+    """``evaluate``'s report (real and generated metrics, per action, meta) for a model of any kind.
+
+    ``strategy`` picks how ODMO draws codes (None: mode-preserving); Action2Motion samples from its
+    learned prior, and a strategy given for it is refused.
+    """
+    options = {"repeats": repeats, "n_per_action": n_per_action, "seed": seed, "progress": progress}
+    if generator.kind == "odmo":
+        from engine.metrics.evaluate import evaluate
+
+        return evaluate(
+            generator.loaded, real_clips, classifier, strategy=strategy or "mode_preserving", **options
+        )
+    if generator.kind == "a2m":
+        if strategy is not None:
+            raise ConfigError(
+                f"{generator.path}: an a2m model samples from its learned prior; drop --strategy"
+            )
+        from engine.metrics.a2m_eval import evaluate_a2m
+
+        return evaluate_a2m(generator.loaded, real_clips, classifier, **options)
+    raise ConfigError(f"{generator.path}: no evaluation for {generator.kind} models")
