@@ -193,32 +193,31 @@ def _cmd_train(args: argparse.Namespace) -> int:
 
 
 def _cmd_bank(args: argparse.Namespace) -> int:
-    from engine.generators import CapabilityError, model_kind
-
-    if (kind := model_kind(args.model)) != "odmo":
-        raise CapabilityError(f"{args.model}: this {kind} model has no latent codes to build a bank of")
     with folder_lock(args.model, "writing the model folder"):
         return _bank_locked(args)
 
 
 def _bank_locked(args: argparse.Namespace) -> int:
-    from engine.generate import encode_bank_windows, encode_clips
+    from engine.generators import model_kind, open_generator, require
+    from engine.generators.odmo import OdmoGenerator
     from engine.latent.bank import build_bank
     from engine.modelio import load_model, save_bank
 
-    loaded = load_model(args.model, with_bank=False)
+    if model_kind(args.model) == "odmo":  # a damaged bank must not stop the command that rebuilds it
+        loaded = OdmoGenerator(load_model(args.model, with_bank=False))
+    else:
+        loaded = open_generator(args.model)
+    require(loaded, "encode", "build a latent bank (it cannot encode clips into codes)")
     dataset = _dataset(args)
     unknown = sorted({c.action for c in dataset.clips} - set(loaded.action_names))
     if unknown:
         raise DataError(f"{args.data}: actions {unknown} are not the model's {loaded.action_names}")
-    if args.stride is None:
-        codes, ends = encode_clips(loaded, dataset.clips)
-        clips, metas = dataset.clips, [dict(c.meta) for c in dataset.clips]
-    else:
-        codes, ends, owners, starts = encode_bank_windows(loaded, dataset.clips, args.stride)
-        clips = [dataset.clips[k] for k in owners]
+    codes, ends, owners, starts = loaded.encode_bank(dataset.clips, args.stride)
+    clips = [dataset.clips[k] for k in owners]
+    metas = [dict(c.meta) for c in clips]
+    if starts is not None:
         window = {"window_stride": args.stride}
-        metas = [dict(c.meta) | window | {"window_start": int(s)} for c, s in zip(clips, starts, strict=True)]
+        metas = [m | window | {"window_start": int(s)} for m, s in zip(metas, starts, strict=True)]
     progress = tqdm(total=1.0, bar_format=_BAR, file=sys.stderr)
     try:
 

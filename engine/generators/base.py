@@ -123,6 +123,21 @@ class FolderGenerator:
         motions = self.decode(codes, action, seed=seed)
         return [Sample(c, index, -1, None, m) for c, m in zip(codes, motions, strict=True)]
 
+    def encode_bank(
+        self, clips: Sequence[Motion], stride: int | None = None
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None]:
+        """Codes (N, D), end locations (N, 3; zeros for kinds without), clip index (N,) and window start
+        (N,; None for one code per clip) of ``clips`` for a latent bank ("encode")."""
+        if stride is None:
+            codes = np.stack([self.encode(clip)[0] for clip in clips]).astype(np.float32)
+            owners, starts = np.arange(len(clips)), None
+        else:
+            rows = [self.encode_windows(clip, stride) for clip in clips]
+            codes = np.concatenate([r.codes for r in rows]).astype(np.float32)
+            owners = np.concatenate([np.full(len(r.codes), k) for k, r in enumerate(rows)])
+            starts = np.concatenate([r.starts for r in rows])
+        return codes, np.zeros((len(codes), 3), np.float32), owners.astype(np.int64), starts
+
     def encode_windows(self, motion: Motion, stride: int) -> WindowCodes:
         """``motion``'s T-frame windows every ``stride`` frames, each encoded ("encode")."""
         from engine.generate import WindowCodes, clip_windows

@@ -77,6 +77,15 @@ class OdmoGenerator(FolderGenerator):
         """The posterior-mean code of ``motion`` and a guess of its action index."""
         return generate.encode(self.loaded, motion)
 
+    def encode_bank(
+        self, clips: Sequence[Motion], stride: int | None = None
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None]:
+        """Codes, end locations, clip index and window start of ``clips`` for a latent bank, in batches."""
+        if stride is None:
+            codes, ends = generate.encode_clips(self.loaded, clips)
+            return codes, ends, np.arange(len(clips), dtype=np.int64), None
+        return generate.encode_bank_windows(self.loaded, clips, stride)
+
     def encode_windows(self, motion: Motion, stride: int) -> WindowCodes:
         """``motion``'s windows every ``stride`` frames, encoded in one batch, with their end locations."""
         return generate.encode_windows(self.loaded, motion, stride)

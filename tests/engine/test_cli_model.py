@@ -11,6 +11,7 @@ import pytest
 
 from engine import cli
 from engine.generate import bank_window, decode, encode, encode_clips, sample
+from engine.generators import open_generator
 from engine.modelio import BANK_FILE, WEIGHTS_FILE, load_model
 from engine.motion.motion import Motion
 
@@ -184,6 +185,23 @@ def test_bank_with_a_stride_makes_each_long_clip_a_path_of_window_codes(odmo, mo
     with pytest.raises(SystemExit, match="2"):
         odmo(*argv, "--stride", 0)
     assert "--stride: must be at least 1" in capsys.readouterr().err
+
+
+def test_bank_takes_any_kind_that_encodes(odmo, tiny_a2m_dir, data_dir, tmp_path):
+    model = Path(shutil.copytree(tiny_a2m_dir, tmp_path / "a2m"))
+    argv = ["bank", "--model", model, "--data", data_dir, "--pattern", PATTERN, "--projections", "pca"]
+    assert odmo(*argv) == 0
+    generator = open_generator(model)
+    bank = generator.bank
+    files = sorted(data_dir.glob("*.npz"))
+    assert sorted(bank.sources) == sorted(p.name for p in files)
+    for path in files[::17]:
+        [row] = np.flatnonzero(bank.sources == path.name)
+        code, _ = generator.encode(Motion.from_file(path))
+        np.testing.assert_allclose(bank.codes[row], code, atol=1e-5)
+    assert odmo(*argv, "--stride", 20) == 0
+    windows = open_generator(model).bank
+    assert len(windows.codes) > len(bank.codes) and {"window_start", "window_stride"} <= set(windows.meta[0])
 
 
 @pytest.mark.slow
