@@ -7,6 +7,7 @@ from pathlib import Path
 import numpy as np
 
 from engine.generators import open_generator
+from engine.motion.motion import Motion
 from explorer.model_menu import bundled_models
 from tests.explorer.conftest import Opened
 from tests.explorer.gestures import click_map, drag_map, isolated_points, outside_view, played_points
@@ -72,3 +73,32 @@ def test_file_menu_lists_bundled_and_recent_models(qtbot, open_explorer, tiny_mo
     assert "bandai2-odmo" in [a.text() for a in window.bundled_menu.actions()]
     recent = [Path(a.text()) for a in window.recent_menu.actions()]
     assert recent[0] == Path(tiny_model_dir).resolve()
+
+
+def test_every_enabled_selection_tool_works_on_an_a2m_model(
+    qtbot, open_explorer, tiny_a2m_dir, procedural_clips, tmp_path
+) -> None:
+    opened: Opened = open_explorer(tiny_a2m_dir)
+    window, c = opened.window, opened.controller
+    qtbot.waitUntil(lambda: c.state.model is not None, timeout=60_000)
+    walks = [int(i) for i in np.flatnonzero(c.bank.actions == 0)[:6]]
+    c.state.selection = tuple(walks)
+    for action in (window.variations_action, window.fit_mode_action, window.play_selection_action):
+        assert action.isEnabled(), action.text()
+        with qtbot.waitSignal(c.shownChanged, timeout=60_000):
+            action.trigger()
+        assert c.state.shown and all(np.isfinite(d.motion.joints).all() for d in c.state.shown)
+    assert c.map.local_mode is not None  # outlined on the map
+
+    written = c.exporter.export_selection(tmp_path / "walks.bvh")
+    assert [Motion.from_file(p).n_frames for p in written] == [c.generator.window] * len(walks)
+
+    clip = tmp_path / "clip.npz"
+    procedural_clips[0].save(clip)
+    with qtbot.waitSignal(c.shownChanged, timeout=60_000):
+        c.encoder.encode_files([str(clip)])
+    assert c.state.extra is not None and len(c.state.extra.codes) >= 1
+    code, _ = open_generator(tiny_a2m_dir).encode(
+        procedural_clips[0].with_joints(procedural_clips[0].joints[:60])
+    )
+    np.testing.assert_allclose(c.state.extra.codes[0], code, atol=1e-4)
