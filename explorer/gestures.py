@@ -27,10 +27,12 @@ class Gestures:
         self.c = c
         self.drag_from: int | None = None  # bank index a drag started on
 
-    def bank_item(self, index: int) -> tuple[np.ndarray, int, np.ndarray]:
-        """(code, action, end) of bank code ``index`` (copies: the bank's arrays are read-only)."""
+    def bank_item(self, index: int) -> tuple[np.ndarray, int, np.ndarray | None]:
+        """(code, action, end) of bank code ``index`` (copies: the bank's arrays are read-only; the end is
+        None for kinds that take none)."""
         bank = self.c.bank
-        return bank.codes[index].copy(), int(bank.actions[index]), bank.ends[index].copy()
+        end = bank.ends[index].copy() if self.c.can("end") else None
+        return bank.codes[index].copy(), int(bank.actions[index]), end
 
     def select_index(self, index: int) -> None:
         """Click bank code ``index`` as the map would (``--select``); an index out of range is reported."""

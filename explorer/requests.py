@@ -45,8 +45,10 @@ class BankDecode:
         """The decoded motions (and real windows), labelled with bank index and clip name."""
         bank, items = self.bank, []
         labels = mode_labels(bank)
+        with_end = "end" in self.generator.capabilities
         for i, clip in zip(self.indices, self.clips, strict=True):
-            code, action, end = bank.codes[i].copy(), int(bank.actions[i]), bank.ends[i].copy()
+            code, action = bank.codes[i].copy(), int(bank.actions[i])
+            end = bank.ends[i].copy() if with_end else None
             mode = None if labels[i] < 0 else int(labels[i])
             motion = decode_one(self.generator, code, action, end, mode)
             name = f"#{i} {bank.sources[i]}"

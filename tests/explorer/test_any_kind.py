@@ -30,6 +30,8 @@ def test_an_a2m_model_decodes_interpolates_and_samples_in_the_window(
     [expected] = generator.decode(c.bank.codes[index][None], action)
     np.testing.assert_allclose(shown.motion.joints, expected.joints, atol=1e-5)
     assert outside_view(window.viewport, played_points(opened)) == 0
+    assert shown.end is None and " end (" not in window.status_label.text()  # the kind takes no end
+    assert not window.viewport._end_actor.GetVisibility()
 
     same = np.flatnonzero(c.bank.actions == c.bank.actions[index])
     far = int(same[np.argmax(np.linalg.norm(c.state.embedding[same] - c.state.embedding[index], axis=1))])
