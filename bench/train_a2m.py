@@ -130,12 +130,21 @@ def main() -> int:
     shutil.copy2(args.data / "LICENSE", out / "LICENSE")  # the data's CC BY-NC 4.0, which the model inherits
     heldout = sorted(str(Path(c.meta["source"]).name) for c in test_clips)
     atomic_write_text(out / "heldout_clips.txt", "\n".join(heldout) + "\n")
-    atomic_write_text(out / "eval.json", json.dumps(report, indent=2))
+    shipped = report | {"meta": report["meta"] | {"model": out.name, "classifier": _shown(args.classifier)}}
+    atomic_write_text(out / "eval.json", json.dumps(shipped, indent=2))  # no machine paths in what ships
     trained = load_a2m(work)
     summary["windows_seen"] = trained.provenance["windows_seen"]
     card = model_card(report, trained.config, summary, sys.argv[1:], len(test_clips), dataset.fingerprint)
     atomic_write_text(out / "MODEL_CARD.md", card)
     return 0
+
+
+def _shown(path: Path) -> str:
+    """``path`` relative to the repository when inside it, else its name."""
+    try:
+        return str(path.resolve().relative_to(ROOT))
+    except ValueError:
+        return path.name
 
 
 def model_card(

@@ -29,12 +29,25 @@ from engine.motion.npz import read_npz
 pytestmark = pytest.mark.usefixtures("torch_single_thread")
 
 
-FOLDERS = {"odmo": "tiny_model_dir", "a2m": "tiny_a2m_dir", "a2m-baseline": "tiny_a2m_old_dir"}
+FOLDERS = {
+    "odmo": "tiny_model_dir",
+    "a2m": "tiny_a2m_dir",
+    "a2m-baseline": "tiny_a2m_old_dir",
+    "bandai2-a2m": "bundled_a2m_dir",
+}
+BUNDLED_A2M = Path(__file__).resolve().parents[2] / "resources" / "models" / "bandai2-a2m"
+
+
+@pytest.fixture(scope="session")
+def bundled_a2m_dir() -> Path:
+    """The bundled Action2Motion model trained on Bandai-Namco-2."""
+    return BUNDLED_A2M
 
 
 @pytest.fixture(params=sorted(FOLDERS))
 def folder(request: pytest.FixtureRequest) -> Path:
-    """The folder of a tiny trained model of each kind (and of the old A2M baseline, which only samples)."""
+    """The folder of a tiny trained model of each kind, of the old A2M baseline (which only samples) and
+    the bundled Action2Motion."""
     return request.getfixturevalue(FOLDERS[request.param])
 
 
@@ -156,13 +169,16 @@ def test_declared_capabilities_work_and_the_others_are_refused(
         assert bank is None
 
 
-def test_require_names_what_the_model_can_do(tiny_a2m_old_dir: Path, tiny_a2m_dir: Path) -> None:
+def test_require_names_what_the_model_can_do(
+    tiny_a2m_old_dir: Path, tiny_a2m_dir: Path, capsys: pytest.CaptureFixture
+) -> None:
     generator = open_generator(tiny_a2m_old_dir)
     with pytest.raises(CapabilityError, match=r"cannot encode a motion into a code; it can sample motions$"):
         require(generator, "encode")
     with pytest.raises(CapabilityError, match=r"cannot set where the motion ends; it can sample motions, "):
         require(open_generator(tiny_a2m_dir), "end")
-    assert main(["bank", "--model", str(tiny_a2m_dir), "--data", str(tiny_a2m_dir)]) == 1
+    assert main(["bank", "--model", str(tiny_a2m_old_dir), "--data", str(tiny_a2m_old_dir)]) == 1
+    assert "cannot build a latent bank" in capsys.readouterr().err
 
 
 def test_unknown_kinds_are_refused_by_name(tiny_a2m_dir: Path, tmp_path: Path) -> None:
