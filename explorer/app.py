@@ -137,6 +137,7 @@ def take_screenshot(explorer: Explorer, path: Path) -> None:
     from explorer.export import save_png
 
     window = explorer.window
+    QApplication.processEvents()  # widgets shown or laid out by the last update (e.g. new mode rows)
     window.viewport.render_now()
     state = explorer.controller.state
     meta = {

@@ -146,7 +146,8 @@ class ModePanel(QWidget):
     def _rebuild_modes(self, sizes: Sequence[int], weights: Sequence[float]) -> None:
         while self._modes_layout.count():
             widget = self._modes_layout.takeAt(0).widget()
-            if widget is not None:
+            if widget is not None:  # hidden now: a grab before the deferred delete must not show it
+                widget.hide()
                 widget.deleteLater()
         self._sliders = []
         for mode, (size, weight, rgb) in enumerate(zip(sizes, weights, palette_rgb(len(sizes)), strict=True)):

@@ -6,9 +6,11 @@ import dataclasses
 from pathlib import Path
 
 import pytest
+from PySide6.QtWidgets import QLabel
 
 from engine.motion.motion import Motion
 from engine.train.loop import train
+from explorer.app import take_screenshot
 from tests.explorer.conftest import Opened
 from tests.fixtures.tiny_model import TINY_PROJECTIONS, single_thread, tiny_config
 
@@ -61,3 +63,27 @@ def test_every_action_has_its_own_colour_and_a_mode_note(qtbot, open_explorer, m
     n_codes = len(c.bank.indices_of(0))
     assert panel.note.text(), "no word on why this action has the modes it shows"
     assert str(n_codes) in panel.note.text() or "K =" in panel.note.text()
+
+
+def test_a_screenshot_right_after_a_change_shows_the_new_mode_rows(
+    qtbot, open_explorer, many_actions_dir, tmp_path
+) -> None:
+    opened: Opened = open_explorer(many_actions_dir)
+    window, c = opened.window, opened.controller
+    qtbot.waitUntil(lambda: c.state.model is not None, timeout=60_000)
+
+    def rows() -> list[str]:
+        box = window.mode_panel._modes_box
+        return [
+            label.text()
+            for label in box.findChildren(QLabel)
+            if label.isVisible() and "clips" in label.text()
+        ]
+
+    window.action_combo.setCurrentIndex(0)
+    qtbot.waitUntil(lambda: rows() == [f"{len(c.bank.indices_of(0))} clips"])
+    later = EMPTY - 1
+    assert len(c.bank.indices_of(later)) != len(c.bank.indices_of(0))
+    window.action_combo.setCurrentIndex(later)  # no event processed before the grab
+    take_screenshot(opened.explorer, tmp_path / "shot.png")
+    assert rows() == [f"{len(c.bank.indices_of(later))} clips"]
