@@ -132,16 +132,28 @@ def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
     p.add_argument(
         "--rows", default=",".join(ROWS), help=f"comma-separated rows to make (default all: {','.join(ROWS)})"
     )
-    p.add_argument("--previous", type=Path, help="an earlier model folder for the odmo_previous row")
-    p.add_argument("--previous-label", default=None, help="what the odmo_previous row is called")
+    p.add_argument(
+        "--previous", type=Path, action="append", default=[],
+        help="an earlier model folder for an odmo_previous row (repeatable)",
+    )  # fmt: skip
+    p.add_argument(
+        "--previous-label", action="append", default=[], help="what each odmo_previous row is called"
+    )
     args = p.parse_args(argv)
     args.rows = [r.strip() for r in args.rows.split(",") if r.strip()]
     unknown = sorted(set(args.rows) - set(ROWS))
     if unknown:
         p.error(f"unknown rows {', '.join(unknown)}; choose from {', '.join(ROWS)}")
-    if "odmo_previous" in args.rows and args.previous is None:
+    if "odmo_previous" in args.rows and not args.previous:
         p.error("the odmo_previous row needs --previous DIR")
+    if len(args.previous_label) > len(args.previous):
+        p.error("more --previous-label than --previous folders")
     return args
+
+
+def previous_key(index: int) -> str:
+    """Row key of the ``index``-th --previous folder: odmo_previous, odmo_previous_2, ..."""
+    return "odmo_previous" if index == 0 else f"odmo_previous_{index + 1}"
 
 
 def shown(path: Path, outside: str) -> str:
@@ -401,10 +413,11 @@ def main(argv: Sequence[str] | None = None) -> int:
             "(its MODEL_CARD.md has the command and settings)"
         )
     labels = {}
-    if "odmo_previous" in wanted:
-        folders["odmo_previous"] = args.previous
-        labels["odmo_previous"] = args.previous_label or ROWS["odmo_previous"]
-        notes["odmo_previous"] = f"evaluated as it is ({shown(args.previous, 'PREVIOUS')})"
+    previous = [previous_key(i) for i in range(len(args.previous))] if "odmo_previous" in wanted else []
+    for i, key in enumerate(previous):
+        folders[key] = args.previous[i]
+        labels[key] = args.previous_label[i] if i < len(args.previous_label) else ROWS["odmo_previous"]
+        notes[key] = f"evaluated as it is ({shown(args.previous[i], 'PREVIOUS')})"
     a2m_config = A2mConfig(n_actions=len(names), n_joints=skeleton.n_joints, epochs=args.epochs)
     if "a2m" in wanted:
         folders["a2m"] = args.runs / "a2m"
@@ -430,9 +443,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         ("odmo_push_only", "odmo_push_only", "mode_preserving"),
         ("odmo_push_bf16", "odmo_push_bf16", "mode_preserving"),
         ("odmo_default", "odmo_default", "mode_preserving"),
-        ("odmo_previous", "odmo_previous", "mode_preserving"),
+        *((key, key, "mode_preserving") for key in previous),
     ):
-        if key not in folders or row not in wanted:
+        if key not in folders or (row not in wanted and row not in previous):
             continue
         loaded = load_model(folders[key], device="cpu")
         saved = args.runs / f"eval_{row}.json"
@@ -489,7 +502,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         "lowest foot height, share of frames with the lowest foot joint > 2 cm under the floor, share of "
         "clips whose feet stay > 10 cm up for 0.5 s, mean hand speed, mean jerk of every joint",
         "Rows": "this run made "
-        + ", ".join(ROWS[k] if k not in labels else labels[k] for k in args.rows)
+        + ", ".join((ROWS | labels)[e["row"]] for e in entries)
         + (
             "; rows not listed were not re-run (the previous full table, with the earlier classifier, is in "
             "this file's git history)"

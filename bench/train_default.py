@@ -236,8 +236,14 @@ def model_switches(config: OdmoConfig) -> str:
         parts.append(
             "`foot_contact` (a foot-contact head and loss; planted feet pinned to the floor at decode time)"
         )
+    if config.foot_contact and config.w_skate != 1.0:
+        parts.append(f"`w_skate = {config.w_skate:g}` (the weight of the planted-foot speed loss)")
     if config.w_velocity > 0:
         parts.append(f"`w_velocity = {config.w_velocity:g}` (an L2 loss on joint velocities)")
+    if config.w_free > 0:
+        parts.append(f"`w_free = {config.w_free:g}` (a reconstruction loss on a free-running decode)")
+    if config.w_speed > 0:
+        parts.append(f"`w_speed = {config.w_speed:g}` (a loss on that decode's per-window joint speeds)")
     if config.contrastive_pull != 1.0:
         parts.append(
             f"`contrastive_pull = {config.contrastive_pull:g}` (the same-action pull of the contrastive term)"
@@ -248,7 +254,7 @@ def model_switches(config: OdmoConfig) -> str:
     return (
         "paper sizes, with "
         + " and ".join(parts)
-        + ("; a requested end location is reached exactly" if exact else "")
+        + ("; a requested end location's floor position is reached exactly" if exact else "")
     )
 
 

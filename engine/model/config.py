@@ -49,9 +49,9 @@ class OdmoConfig(ModelConfig):
     frame-to-frame joint velocities. ``w_free`` weights the reconstruction loss of a free-running decode
     of the same codes (the decoder as it runs at sampling time, trained through its own poses) and
     ``w_speed`` the squared error of that decode's per-window mean joint speeds (which, unlike an L2
-    loss on positions, does not reward a still mean pose when the phase is uncertain). The skate and
-    speed terms are in m²/s²; their defaults keep every term's gradient on the decoder near the
-    reconstruction's (README, "Where the model differs from the paper").
+    loss on positions, does not reward a still mean pose when the phase is uncertain); both are off by
+    default, measured in the README ("Where the model differs from the paper"). The skate and speed
+    terms are in m²/s².
     ``scheduled_sampling`` says where the non-teacher-forced previous poses come from: "one_step" (a
     teacher-forced pass, the default) or "free_run" (a free-running decode, as the reference's per-step
     loop does; measured worse on the bundled recipe, see the README).
@@ -91,13 +91,13 @@ class OdmoConfig(ModelConfig):
     w_raw: float = 1.0
     foot_contact: bool = True
     w_contact: float = 1.0
-    w_velocity: float = 0.0
+    w_velocity: float = 0.1
     foot_joints: tuple[int, ...] = ()
     foot_heights: tuple[float, ...] = ()
     scheduled_sampling: str = "one_step"
-    w_skate: float = 0.01
-    w_free: float = 1.0
-    w_speed: float = 0.05
+    w_skate: float = 1.0
+    w_free: float = 0.0
+    w_speed: float = 0.0
     arch: str = "odmo"
 
     POSITIVE = ("n_actions", "n_joints", "window", "fps", "latent_dim", "enc_hidden", "enc_fc", "traj_hidden")

@@ -135,6 +135,21 @@ def _kabsch(rest: np.ndarray, seen: np.ndarray, weights: np.ndarray) -> Rotation
     return Rotation.from_quat(quats)
 
 
+def lower_to_floor(joints: np.ndarray, feet: Sequence[int], heights: Sequence[float]) -> np.ndarray:
+    """Joints (B, T, J, 3), floor y = 0, each clip moved down rigidly until the foot joint that comes
+    nearest its resting height (``heights`` (F,) of ``feet``) in any frame reaches it; a clip whose feet
+    reach the floor somewhere is left as it is. A model that places the first root frame at a fixed
+    height gives a clip in a crouching gait (a walk, a run) feet that never come down."""
+    out = np.asarray(joints)
+    above = out[..., list(feet), 1] - np.asarray(heights, dtype=out.dtype)  # (B, T, F)
+    margin = np.maximum(above.min(axis=(1, 2)), 0.0)
+    if not margin.any():
+        return out
+    out = out.copy()
+    out[..., 1] -= margin[:, None, None].astype(out.dtype)
+    return out
+
+
 def plant_feet(
     joints: np.ndarray,
     contact: np.ndarray,
@@ -142,18 +157,23 @@ def plant_feet(
     feet: Sequence[int],
     heights: Sequence[float],
     ramp: int = PLANT_RAMP,
+    ground: bool = True,
 ) -> np.ndarray:
     """Joints (B, T, J, 3), floor y = 0, with planted feet pinned and no foot under its resting height.
 
-    Per leg (``leg_chains``): while its lowest-resting foot joint (the toe) is planted (``contact``
-    (B, T, F) over ``feet``, resting ``heights`` (F,)), that joint keeps the mean floor position of the
-    contact and sits at its resting height; the shift fades out over ``ramp`` frames either side. Any
-    frame whose foot joints dip under their resting heights is lifted to them. The foot moves rigidly and
-    the knee is re-solved by two-bone IK (hip fixed, bone lengths kept; a target out of reach is
-    approached along the hip-to-target line), so the pose stays one a BVH holds exactly.
+    With ``ground`` a clip whose feet never come down to the floor is first lowered onto it
+    (``lower_to_floor``). Per leg (``leg_chains``): while its lowest-resting foot joint (the toe) is
+    planted (``contact`` (B, T, F) over ``feet``, resting ``heights`` (F,)), that joint keeps the mean
+    floor position of the contact and sits at its resting height; the shift fades out over ``ramp``
+    frames either side. Any frame whose foot joints dip under their resting heights is lifted to them.
+    The foot moves rigidly and the knee is re-solved by two-bone IK (hip fixed, bone lengths kept; a
+    target out of reach is approached along the hip-to-target line), so the pose stays one a BVH holds
+    exactly.
     """
     out = np.array(joints, dtype=np.float64, copy=True)
     feet, heights = list(feet), np.asarray(heights, dtype=np.float64)
+    if ground:
+        out = lower_to_floor(out, feet, heights)
     for hip, knee, ankle, below in leg_chains(skeleton):
         leg = [ankle, *below]
         cols = [feet.index(j) for j in leg if j in feet]

@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from engine.motion.ik import PLANT_RAMP, joints_to_rotations, plant_feet
+from engine.metrics.physics import floats
+from engine.motion.ik import PLANT_RAMP, joints_to_rotations, lower_to_floor, plant_feet
 from engine.motion.motion import Motion
 from engine.motion.rotations import forward_kinematics
 from tests.engine.test_metrics_physics import FPS, OFFSETS, PARENTS, skeleton, standing
@@ -38,7 +39,7 @@ def test_a_planted_sliding_foot_is_pinned_and_the_leg_keeps_its_bones() -> None:
     clip = _sliding()
     contact = np.zeros((1, 40, 2), bool)
     contact[0, 10:30, 1] = True  # toe planted for a second
-    out = plant_feet(clip[None], contact, skeleton(), FEET, HEIGHTS)[0]
+    out = plant_feet(clip[None], contact, skeleton(), FEET, HEIGHTS, ground=False)[0]
     toe = out[10:30, 6]
     assert np.ptp(toe[:, [0, 2]], axis=0).max() < 1e-9  # still on the floor plane
     np.testing.assert_allclose(toe[:, 1], 0.0, atol=1e-9)  # at its resting height
@@ -68,3 +69,20 @@ def test_a_foot_under_the_floor_is_lifted_and_nothing_planted_moves_nothing() ->
     assert (out[:, 6, 1] >= -1e-9).all() and (out[:, 5, 1] >= 0.05 - 1e-9).all()
     clean = standing()
     np.testing.assert_allclose(plant_feet(clean[None], none, skeleton(), FEET, HEIGHTS)[0], clean, atol=1e-9)
+
+
+def test_a_clip_whose_feet_never_come_down_is_lowered_onto_the_floor() -> None:
+    clean = standing()
+    bobbing = standing() + np.array([0.0, 0.15, 0.0])
+    bobbing[:, :, 1] += 0.05 * np.sin(np.arange(40) / 3.0)[:, None]  # 10-20 cm up, never down
+    assert floats(bobbing, FEET, FPS) and not floats(clean, FEET, FPS)
+    batch = np.stack([clean, bobbing])
+    lowered = lower_to_floor(batch, FEET, HEIGHTS)
+    np.testing.assert_array_equal(lowered[0], clean)  # its toes reach the floor: left as it is
+    drop = bobbing[:, 6, 1].min()
+    np.testing.assert_allclose(lowered[1], bobbing - np.array([0.0, drop, 0.0]))  # rigidly, the whole clip
+    assert lowered[1][:, 6, 1].min() == 0.0 and not floats(lowered[1], FEET, FPS)
+    none = np.zeros((2, 40, 2), bool)
+    out = plant_feet(batch, none, skeleton(), FEET, HEIGHTS)
+    np.testing.assert_allclose(out, lowered, atol=1e-9)  # the clean-up lowers it before pinning
+    np.testing.assert_allclose(plant_feet(batch, none, skeleton(), FEET, HEIGHTS, ground=False), batch)
