@@ -83,31 +83,6 @@ def check_reachable(loaded: LoadedModel, index: int, path_xz: np.ndarray) -> Non
         )
 
 
-TRAVELS_M = 0.3  # an action whose bank codes' root moves less than this (median) stays in place
-
-
-def _travel_heading(loaded: LoadedModel, index: int, members: np.ndarray) -> float | None:
-    """The direction (yaw about +y) in which the action's bank codes set off, as decoded (their frame 0
-    faces +z: about 0 for a walk, ±90° for a side-step); None for an action that stays in place."""
-    bank, model = loaded.bank, loaded.model
-    device = next(model.parameters()).device
-    with torch.inference_mode():
-        z = torch.as_tensor(bank.codes[members], dtype=torch.float32, device=device)
-        actions = torch.full((len(members),), index, dtype=torch.long, device=device)
-        ends = None
-        if loaded.config.use_end_location:
-            ends = torch.as_tensor(bank.ends[members], dtype=torch.float32, device=device)
-        floor = model.trajectory(z, actions, ends)[..., [0, 2]].cpu().numpy().astype(np.float64)
-    floor -= floor[:, :1]
-    reach = np.linalg.norm(floor[:, -1], axis=1)
-    if not len(reach) or np.median(reach) < TRAVELS_M:
-        return None
-    ahead = floor[:, max(1, round(HEADING_ARC * (floor.shape[1] - 1)))]
-    unit = ahead / np.maximum(np.linalg.norm(ahead, axis=1, keepdims=True), 1e-9)
-    mean = (unit * reach[:, None]).sum(axis=0)
-    return float(np.arctan2(mean[0], mean[1]))
-
-
 def _floor_error(trajectory: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
     """(R,) mean floor distance between trajectories (R, T, 3) and the target (T, 2)."""
     return torch.linalg.vector_norm(trajectory[..., [0, 2]] - target, dim=-1).mean(dim=-1)
@@ -128,12 +103,10 @@ def follow_path(
 
     ``path_xz`` (K, 2) is in metres on the floor; it is resampled by arc length to the model's T
     frames and shifted to start at the origin, where generated motions start. The end location is
-    the path's last point. Generated motions start facing +z: the path is turned so that it sets off
-    the way the action's bank codes do (a walk along +z, a side-step sideways) and the result turned back,
-    so a walker follows a path drawn in any direction facing where it goes; for an action that stays in
-    place the path is tried both as drawn and turned to +z, and the frame that fits better is kept. A
-    path much longer than the action ever travels in the model's window raises ConfigError (see
-    ``check_reachable``).
+    the path's last point. Generated motions start facing +z: the path is also tried turned so that it
+    sets off along +z (and the result turned back), so a walker follows a path drawn in any direction
+    facing where it goes; the frame whose starting codes fit better is optimised. A path much longer
+    than the action ever travels in the model's window raises ConfigError (see ``check_reachable``).
     Adam runs on ``restarts`` codes at once, the best of the mode means,
     bank codes and ``seed``-drawn samples of the chosen Gaussian (the mode's, or the action's single
     Gaussian). The objective is the mean squared floor distance plus ``prior_weight`` times the
@@ -189,10 +162,8 @@ def follow_path(
         excess = torch.relu(torch.einsum("bi,ij,bj->b", d, precision, d) - dim) / dim
         return sq + prior_weight * excess, _floor_error(trajectory, target)
 
-    travel = _travel_heading(loaded, index, members)
-    frames = (0.0, heading) if travel is None else (float(np.angle(np.exp(1j * (heading - travel)))),)
     best_frame = None
-    for yaw in frames if max(abs(f) for f in frames) > 1e-3 else (0.0,):
+    for yaw in (0.0, heading) if abs(heading) > 1e-3 else (0.0,):
         target_np = turn_floor(requested, -yaw)
         if end is not None:
             end = np.array([target_np[-1, 0], end[1], target_np[-1, 1]], dtype=np.float32)
