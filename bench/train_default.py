@@ -38,6 +38,7 @@ from engine.metrics.smoothness import max_frame_jump
 from engine.model.config import OdmoConfig
 from engine.modelio import load_model
 from engine.motion.datasets import load_folder
+from engine.motion.resample import resample_motion
 from engine.train.loop import train
 
 DEFAULT_OUT = Path(__file__).resolve().parents[1] / "resources" / "models" / "bandai2-odmo"
@@ -209,7 +210,7 @@ def interpolation_smoothness(loaded, clips) -> dict[str, dict]:
     out = {}
     for index, name in enumerate(loaded.action_names):
         modes = loaded.bank.modes.get(index)
-        real = [c.resample(loaded.fps).joints for c in clips if c.action == name]
+        real = [resample_motion(c, loaded.fps).joints for c in clips if c.action == name]
         if modes is None or len(modes.weights) < 2 or not real:
             continue
         a, b = np.argsort(modes.weights)[::-1][:2]

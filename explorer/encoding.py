@@ -61,7 +61,7 @@ class ClipEncoder(QObject):
         loaded, stride = self.c.generator, self.c.window.stride_spin.value()
 
         def job(progress, cancel) -> tuple[list[EncodedClip], list[str]]:
-            from engine.motion.motion import Motion
+            from engine.motion.formats import read_motion
 
             done, failed = [], []
             for k, name in enumerate(paths):
@@ -69,7 +69,7 @@ class ClipEncoder(QObject):
                     break
                 progress(f"Encoding {Path(name).name}", k / len(paths))
                 try:
-                    motion = Motion.from_file(name)
+                    motion = read_motion(name)
                     windows = loaded.encode_windows(motion, stride)
                     decoded = _decode_windows(loaded, Path(name), windows)
                 except (OdmoError, OSError, ValueError) as exc:

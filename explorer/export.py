@@ -22,6 +22,7 @@ from PySide6.QtWidgets import QWidget
 from engine.errors import ConfigError
 from engine.fileio import atomic_write_bytes
 from engine.motion.bvh import provenance_path
+from engine.motion.formats import write_motion
 from engine.motion.motion import Motion
 from explorer.state import Decoded
 
@@ -63,7 +64,7 @@ def export_motions(items: Sequence[Decoded], path: str | Path, model_path: str) 
     written: list[Path] = []
     try:
         for item, target in zip(items, targets, strict=True):
-            motion_with_provenance(item, model_path).save(target)
+            write_motion(motion_with_provenance(item, model_path), target)
             written.append(target)
     except BaseException:
         for done in written:

@@ -196,7 +196,9 @@ def _convert(args: argparse.Namespace) -> int:
                 raise ConfigError(f"no joint named {', '.join(unknown)}")
             motion = motion.without_joints(args.drop_joints)
         if args.fps is not None and abs(args.fps - motion.fps) > 1e-6:
-            motion = motion.resample(args.fps)
+            from engine.motion.resample import resample_motion
+
+            motion = resample_motion(motion, args.fps)
         out = args.output / f"{i:04d}_{motion.action}.{args.to}" if from_pickle else args.output
         report = write_motion(motion, out)
         joints = report.get("joints", motion.n_joints)

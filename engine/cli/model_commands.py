@@ -59,8 +59,10 @@ def _outputs(out: Path, n: int, stem: str) -> Iterator[list[Path]]:
 
 
 def _write(samples: list[Sample], paths: list[Path]) -> None:
+    from engine.motion.formats import write_motion
+
     for s, path in zip(samples, paths, strict=True):
-        s.motion.save(path)
+        write_motion(s.motion, path)
         mode = "" if s.mode < 0 else f" mode {s.mode}"
         print(f"{path}{mode}")
 
@@ -268,11 +270,11 @@ def _cmd_interpolate(args: argparse.Namespace) -> int:
 
 def _cmd_encode(args: argparse.Namespace) -> int:
     from engine.generators import open_generator, require
-    from engine.motion.motion import Motion
+    from engine.motion.formats import read_motion
 
     generator = open_generator(args.model)
     require(generator, "encode")
-    motion = Motion.from_file(args.file, up_axis=args.up_axis)
+    motion = read_motion(args.file, up_axis=args.up_axis)
     code, guess = generator.encode(motion)
     bank, mode = generator.bank, None
     if guess is not None and bank is not None and guess in bank.modes:

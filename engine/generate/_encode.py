@@ -14,6 +14,7 @@ from engine.generate._decode import as_codes
 from engine.modelio import LoadedModel
 from engine.motion.datasets import drop_extra_joints
 from engine.motion.motion import Motion
+from engine.motion.resample import resample_motion
 from engine.train.windows import crop_windows, prepare_clips
 
 
@@ -105,7 +106,7 @@ def window_starts(n_frames: int, window: int, stride: int) -> np.ndarray:
 def _at_model_rate(loaded: LoadedModel, motion: Motion) -> Motion:
     """``motion`` on the model's skeleton at the model's frame rate."""
     moved = conform(loaded, motion)
-    return moved.resample(loaded.fps) if abs(moved.fps - loaded.fps) > 1e-6 else moved
+    return resample_motion(moved, loaded.fps) if abs(moved.fps - loaded.fps) > 1e-6 else moved
 
 
 def clip_windows(loaded: LoadedModel, motion: Motion, stride: int) -> tuple[np.ndarray, list[Motion]]:

@@ -1,10 +1,13 @@
-"""Motion: joint positions over time on a skeleton, with optional local rotations."""
+"""Motion: joint positions over time on a skeleton, with optional local rotations; a data class without I/O.
+
+Files are read and written by ``engine.motion.formats`` (``read_motion``, ``write_motion``), rates changed by
+``engine.motion.resample.resample_motion``, shared operations live in ``engine.motion.ops``.
+"""
 
 from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
-from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -98,36 +101,3 @@ class Motion:
         if len(keep) == skel.n_joints:
             return self
         return Motion(self.joints[:, keep], self.fps, skel.subset(keep), action=self.action, meta=self.meta)
-
-    def resample(self, fps: float) -> Motion:
-        """This motion at ``fps`` (linear interpolation of positions, slerp of rotations)."""
-        from engine.motion.resample import resample_motion
-
-        return resample_motion(self, fps)
-
-    @classmethod
-    def from_bvh(cls, path: str | Path, **kwargs: Any) -> Motion:
-        """Read a BVH file (see :func:`engine.motion.bvh.read_bvh`)."""
-        from engine.motion.bvh import read_bvh
-
-        return read_bvh(path, **kwargs)
-
-    @classmethod
-    def from_npz(cls, path: str | Path) -> Motion:
-        """Read an NPZ file in the ODMO Explorer schema (see :mod:`engine.motion.npz`)."""
-        from engine.motion.npz import read_npz
-
-        return read_npz(path)
-
-    @classmethod
-    def from_file(cls, path: str | Path, **kwargs: Any) -> Motion:
-        """Read any supported motion file, chosen by extension."""
-        from engine.motion.formats import read_motion
-
-        return read_motion(path, **kwargs)
-
-    def save(self, path: str | Path, **kwargs: Any) -> dict[str, Any]:
-        """Write to BVH, NPZ or NPY by extension, atomically; returns a report (e.g. IK error)."""
-        from engine.motion.formats import write_motion
-
-        return write_motion(self, path, **kwargs)

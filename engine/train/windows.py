@@ -14,6 +14,7 @@ from scipy.spatial.transform import Rotation
 
 from engine.errors import DataError
 from engine.motion.motion import Motion
+from engine.motion.resample import resample_motion
 from engine.motion.skeleton import Skeleton
 
 log = logging.getLogger(__name__)
@@ -215,7 +216,7 @@ def prepare_clips(clips: Sequence[Motion], action_names: list[str], fps: float, 
             raise DataError(f"{source}: action {clip.action!r} is not one of {names}")
         if not clip.skeleton.same_topology(skeleton):
             raise DataError(f"{source}: skeleton differs from the first clip's")
-        moved = clip if abs(clip.fps - fps) < 1e-6 else clip.resample(fps)
+        moved = clip if abs(clip.fps - fps) < 1e-6 else resample_motion(clip, fps)
         joints.append(np.ascontiguousarray(moved.joints, dtype=np.float32))
         actions.append(names.index(clip.action))
         sources.append(source)

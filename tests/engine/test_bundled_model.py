@@ -13,7 +13,7 @@ from engine.generate import sample
 from engine.metrics.classifier import load_classifier
 from engine.metrics.features import canonical_windows
 from engine.modelio import load_model
-from engine.motion.motion import Motion
+from engine.motion.bvh import read_bvh
 
 BUNDLED = Path(__file__).resolve().parents[2] / "resources" / "models" / "bandai2-odmo"
 
@@ -52,7 +52,7 @@ def test_cli_samples_walks_from_the_bundled_model(tmp_path, capsys) -> None:
     )
     files = sorted(tmp_path.glob("walk_*.bvh"))
     assert len(files) == 3
-    motion = Motion.from_bvh(files[0])
+    motion = read_bvh(files[0])
     assert motion.n_frames == bundled_window() and np.all(np.isfinite(motion.joints))
 
 

@@ -17,6 +17,7 @@ import pytest
 from engine.cli import main
 from engine.fileio import atomic_write_text, folder_lock
 from engine.modelio import BANK_FILE, META_FILE
+from engine.motion.formats import write_motion
 from engine.motion.npz import read_npz
 from tests.fixtures.tamper import record_bank_checksum, rewrite_npz
 
@@ -26,7 +27,7 @@ def procedural_dir(tmp_path_factory: pytest.TempPathFactory, procedural_clips: l
     """A folder of procedural clips as NPZ files named ``<action>_<n>.npz``."""
     folder = tmp_path_factory.mktemp("procedural")
     for i, clip in enumerate(procedural_clips[::6]):
-        clip.save(folder / f"{clip.action}_{i:03d}.npz")
+        write_motion(clip, folder / f"{clip.action}_{i:03d}.npz")
     return folder
 
 

@@ -13,6 +13,7 @@ from engine import cli
 from engine.generate import bank_window, decode, encode, encode_clips, sample
 from engine.generators import open_generator
 from engine.modelio import BANK_FILE, WEIGHTS_FILE, load_model
+from engine.motion.formats import read_motion, write_motion
 from engine.motion.motion import Motion
 
 PATTERN = r"^(?P<action>[a-z]+)_(?P<style>[a-z-]+)_\d+"
@@ -34,7 +35,7 @@ def data_dir(tmp_path_factory, procedural_clips) -> Path:
     """The procedural clips as NPZ files named ``{action}_{style}_{k}.npz``."""
     folder = tmp_path_factory.mktemp("procedural_npz")
     for clip in procedural_clips:
-        clip.save(folder / f"{Path(clip.meta['source']).name}.npz")
+        write_motion(clip, folder / f"{Path(clip.meta['source']).name}.npz")
     return folder
 
 
@@ -61,7 +62,7 @@ def test_sample_numbers_files_and_matches_the_api(odmo, tiny_model_dir, tmp_path
     assert [f.name for f in files] == ["walk_000.npz", "walk_001.npz", "walk_002.npz"]
     expected = sample(load_model(tiny_model_dir), "walk", 3, 4)
     for path, s in zip(files, expected, strict=True):
-        motion = Motion.from_file(path)
+        motion = read_motion(path)
         assert motion.action == "walk" and motion.meta["mode"] == s.mode and motion.meta["seed"] == 4
         np.testing.assert_allclose(motion.joints, s.motion.joints, atol=1e-6)
     assert str(files[0]) in capsys.readouterr().out
@@ -71,7 +72,7 @@ def test_sample_one_mode_into_a_folder_with_an_end(odmo, tiny_model_dir, tmp_pat
     out = tmp_path / "clips"
     argv = ["sample", "--model", tiny_model_dir, "--action", "wave", "--mode", 0, "--n", 2, "--end", 0.5, 1.5]
     assert odmo(*argv, "--out", out) == 0
-    motions = [Motion.from_file(p) for p in sorted(out.glob("*.npz"))]
+    motions = [read_motion(p) for p in sorted(out.glob("*.npz"))]
     assert len(motions) == 2
     for m in motions:
         assert m.meta["mode"] == 0
@@ -81,7 +82,7 @@ def test_sample_one_mode_into_a_folder_with_an_end(odmo, tiny_model_dir, tmp_pat
 def test_sample_writes_bvh(odmo, tiny_model_dir, tmp_path):
     out = tmp_path / "jump.bvh"
     assert odmo("sample", "--model", tiny_model_dir, "--action", "jump", "--out", out) == 0
-    motion = Motion.from_file(out)
+    motion = read_motion(out)
     loaded = load_model(tiny_model_dir)
     assert motion.n_frames == loaded.window and motion.skeleton.names == loaded.skeleton.names
 
@@ -95,7 +96,7 @@ def test_interpolate_from_a_mode_to_a_bank_code(odmo, tiny_model_dir, tmp_path):
     assert odmo(*argv, "--steps", 4, "--method", "slerp", "--out", out) == 0
     files = sorted(out.glob("*.npz"))
     assert len(files) == 4
-    first, last = Motion.from_file(files[0]), Motion.from_file(files[-1])
+    first, last = read_motion(files[0]), read_motion(files[-1])
     np.testing.assert_allclose(
         first.joints, decode(loaded, loaded.bank.modes[walk].means[0], walk).joints, atol=1e-6
     )
@@ -106,7 +107,7 @@ def test_encode_prints_code_action_and_mode(odmo, tiny_model_dir, data_dir, caps
     path = sorted(data_dir.glob("wave_*.npz"))[0]
     assert odmo("encode", "--model", tiny_model_dir, path, "--json") == 0
     report = json.loads(capsys.readouterr().out)
-    code, guess = encode(load_model(tiny_model_dir), Motion.from_file(path))
+    code, guess = encode(load_model(tiny_model_dir), read_motion(path))
     np.testing.assert_allclose(report["code"], code, atol=1e-5)
     assert report["action"] == "wave" == load_model(tiny_model_dir).action_names[guess]
     assert isinstance(report["mode"], int)
@@ -135,7 +136,7 @@ def test_wrong_skeleton_is_one_line(odmo, tiny_model_dir, procedural_clips, tmp_
     keep = list(range(clip.n_joints - 2))
     small = Motion(clip.joints[:, keep], clip.fps, clip.skeleton.subset(keep))
     path = tmp_path / "small.npz"
-    small.save(path)
+    write_motion(small, path)
     assert odmo("encode", "--model", tiny_model_dir, path) == 1
     _one_error_line(capsys, "skeleton does not match", "RightUpLeg")
 
@@ -169,7 +170,7 @@ def test_bank_with_a_stride_makes_each_long_clip_a_path_of_window_codes(odmo, mo
     loaded = load_model(model_copy)
     bank, window = loaded.bank, loaded.window
     for path in sorted(data_dir.glob("*.npz"))[::9]:
-        clip = Motion.from_file(path)
+        clip = read_motion(path)
         rows = [i for i, source in enumerate(bank.sources) if source == path.name]
         starts = [bank.meta[i]["window_start"] for i in rows]
         last = max(clip.n_frames - window, 0)  # the clips are at the model's 20 fps
@@ -197,7 +198,7 @@ def test_bank_takes_any_kind_that_encodes(odmo, tiny_a2m_dir, data_dir, tmp_path
     assert sorted(bank.sources) == sorted(p.name for p in files)
     for path in files[::17]:
         [row] = np.flatnonzero(bank.sources == path.name)
-        code, _ = generator.encode(Motion.from_file(path))
+        code, _ = generator.encode(read_motion(path))
         np.testing.assert_allclose(bank.codes[row], code, atol=1e-5)
     assert odmo(*argv, "--stride", 20) == 0
     windows = open_generator(model).bank

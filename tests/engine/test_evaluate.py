@@ -17,6 +17,7 @@ from engine.metrics.classifier import Classifier, train_classifier
 from engine.metrics.evaluate import evaluate, evaluate_sets, report
 from engine.modelio import load_model
 from engine.motion.datasets import load_folder
+from engine.motion.formats import write_motion
 from engine.motion.motion import Motion
 from engine.train.windows import crop_windows, prepare_clips
 from tests.fixtures.procedural import PROCEDURAL_ACTIONS
@@ -123,7 +124,7 @@ def _write_folder(clips: list[Motion], folder: Path) -> Path:
     rows = ["file,action,style"]
     for i, clip in enumerate(clips):
         name = f"clip_{i:03d}.npz"
-        clip.save(folder / name)
+        write_motion(clip, folder / name)
         rows.append(f"{name},{clip.action},{clip.meta['style']}")
     (folder / "labels.csv").write_text("\n".join(rows) + "\n")
     return folder

@@ -20,6 +20,7 @@ from engine.latent.modes import single_gaussian
 from engine.latent.neighbours import nearest, selection_summary, spread_subset
 from engine.modelio import LoadedModel, load_model
 from engine.motion.motion import Motion
+from engine.motion.resample import resample_motion
 from engine.train.windows import canonicalize
 
 
@@ -91,7 +92,7 @@ def test_a_long_clip_encodes_as_a_path_of_windows(loaded, procedural_clips) -> N
     long = procedural_clips[0]
     long = long.with_joints(np.concatenate([long.joints] * 3))
     windows = encode_windows(loaded, long, stride=20)
-    moved = long.resample(loaded.fps) if abs(long.fps - loaded.fps) > 1e-6 else long
+    moved = resample_motion(long, loaded.fps) if abs(long.fps - loaded.fps) > 1e-6 else long
     np.testing.assert_array_equal(windows.starts, window_starts(moved.n_frames, loaded.window, 20))
     assert windows.codes.shape == (len(windows.starts), loaded.config.latent_dim)
     assert np.all(np.isfinite(windows.codes)) and windows.stride == 20

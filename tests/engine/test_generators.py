@@ -24,6 +24,7 @@ from engine.generators import (
     open_generator,
     require,
 )
+from engine.motion.formats import write_motion
 from engine.motion.npz import read_npz
 
 pytestmark = pytest.mark.usefixtures("torch_single_thread")
@@ -132,7 +133,7 @@ def test_declared_capabilities_work_and_the_others_are_refused(
     generator = open_generator(folder)
     action = generator.action_names[0]
     clip = generator.sample(SampleRequest(action, 1, 0))[0].motion
-    clip.save(tmp_path / "clip.npz")
+    write_motion(clip, tmp_path / "clip.npz")
     model = ["--model", str(folder), "--action", action]
     bank = generator.bank
     ends = ["i0", "i1"] if bank is None else [f"i{i}" for i in np.flatnonzero(bank.actions == 0)[:2]]

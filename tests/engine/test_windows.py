@@ -7,6 +7,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from engine.errors import DataError
+from engine.motion.bvh import read_bvh
 from engine.motion.motion import Motion
 from engine.motion.skeleton import Skeleton
 from engine.train.windows import canonicalize, crop_windows, left_right_pairs, prepare_clips
@@ -95,7 +96,7 @@ def test_left_right_pairs_by_name_and_fallback() -> None:
 
 def test_real_skeleton_left_right_pairs(bandai_dir) -> None:
     first = sorted((bandai_dir / "data").glob("*.bvh"))[0]
-    skeleton = Motion.from_bvh(first).skeleton
+    skeleton = read_bvh(first).skeleton
     pairs = left_right_pairs(skeleton)
     assert {(skeleton.names[a], skeleton.names[b]) for a, b in pairs} >= {
         (n.replace("_R", "_L"), n) for n in skeleton.names if n.startswith("UpperLeg") and n.endswith("_R")

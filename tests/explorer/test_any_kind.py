@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 
 from engine.generators import open_generator
-from engine.motion.motion import Motion
+from engine.motion.formats import read_motion, write_motion
 from explorer.model_menu import bundled_models
 from tests.explorer.conftest import Opened
 from tests.explorer.gestures import click_map, drag_map, isolated_points, outside_view, played_points
@@ -93,10 +93,10 @@ def test_every_enabled_selection_tool_works_on_an_a2m_model(
     assert c.map.local_mode is not None  # outlined on the map
 
     written = c.exporter.export_selection(tmp_path / "walks.bvh")
-    assert [Motion.from_file(p).n_frames for p in written] == [c.generator.window] * len(walks)
+    assert [read_motion(p).n_frames for p in written] == [c.generator.window] * len(walks)
 
     clip = tmp_path / "clip.npz"
-    procedural_clips[0].save(clip)
+    write_motion(procedural_clips[0], clip)
     with qtbot.waitSignal(c.shownChanged, timeout=60_000):
         c.encoder.encode_files([str(clip)])
     assert c.state.extra is not None and len(c.state.extra.codes) >= 1

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from PySide6.QtGui import QImage
 
-from engine.motion.motion import Motion
+from engine.motion.formats import read_motion
 from explorer import app
 from tests.explorer.conftest import Opened, close_message_boxes
 
@@ -26,7 +26,7 @@ def test_export_npz_and_bvh_read_back_with_provenance(qtbot, explorer: Opened, t
     _show_bank_code(qtbot, explorer, 3)
     shown = c.state.shown[0]
     [npz] = c.exporter.export_shown(tmp_path / "clip.npz")
-    back = Motion.from_file(npz)
+    back = read_motion(npz)
     np.testing.assert_allclose(back.joints, shown.motion.joints, atol=1e-6)
     assert back.meta["code"] == pytest.approx([float(v) for v in c.bank.codes[3]])
     assert back.meta["action"] == c.bank.action_names[int(c.bank.actions[3])]
@@ -34,7 +34,7 @@ def test_export_npz_and_bvh_read_back_with_provenance(qtbot, explorer: Opened, t
     assert back.meta["end"] == pytest.approx([float(v) for v in c.bank.ends[3]])
     assert back.meta["bank_index"] == 3
     [bvh] = c.exporter.export_shown(tmp_path / "clip.bvh")
-    read = Motion.from_file(bvh)
+    read = read_motion(bvh)
     assert read.n_frames == shown.motion.n_frames
     assert read.skeleton.same_topology(shown.motion.skeleton)
     root = read.skeleton.root  # BVH stores the root's translation exactly; the limbs go through IK
@@ -46,7 +46,7 @@ def test_export_selection_writes_one_file_per_code(qtbot, explorer: Opened, tmp_
     c.state.selection = (0, 5, 7)
     written = c.exporter.export_selection(tmp_path / "sel.npz")
     assert [p.name for p in written] == ["sel_000.npz", "sel_001.npz", "sel_002.npz"]
-    assert [Motion.from_file(p).meta["bank_index"] for p in written] == [0, 5, 7]
+    assert [read_motion(p).meta["bank_index"] for p in written] == [0, 5, 7]
 
 
 def test_failed_export_shows_error_and_leaves_nothing(qtbot, explorer: Opened, tmp_path: Path) -> None:

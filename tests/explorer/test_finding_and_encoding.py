@@ -12,6 +12,8 @@ from PySide6.QtGui import QDragEnterEvent, QDropEvent
 from PySide6.QtWidgets import QApplication
 
 from engine.generate import window_starts
+from engine.motion.formats import write_motion
+from engine.motion.resample import resample_motion
 from explorer.bookmarks import bookmarks_path, load_bookmarks
 from tests.explorer.conftest import Opened, close_message_boxes
 from tests.explorer.gestures import click_map, isolated_points
@@ -114,7 +116,7 @@ def test_dropped_clips_are_encoded_as_windows_and_bad_files_are_named(
     clip = procedural_clips[0]
     long = clip.with_joints(np.concatenate([clip.joints] * 3))
     good = tmp_path / "long_walk.npz"
-    long.save(good)
+    write_motion(long, good)
     bad = tmp_path / "broken.bvh"
     bad.write_text("HIERARCHY\nROOT hips\n{\n")
     w.stride_spin.setValue(20)
@@ -122,7 +124,7 @@ def test_dropped_clips_are_encoded_as_windows_and_bad_files_are_named(
         _drop(w, [good, bad])
     texts = close_message_boxes()
     assert texts and "broken.bvh" in texts[0] and "long_walk" not in texts[0]
-    moved = long.resample(c.generator.fps) if abs(long.fps - c.generator.fps) > 1e-6 else long
+    moved = resample_motion(long, c.generator.fps) if abs(long.fps - c.generator.fps) > 1e-6 else long
     starts = window_starts(moved.n_frames, c.generator.window, 20)
     assert len(c.state.extra.codes) == len(starts)
     np.testing.assert_allclose(

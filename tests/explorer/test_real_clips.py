@@ -11,6 +11,7 @@ import pytest
 from engine import cli
 from engine.latent.bank import LatentBank
 from engine.modelio import save_bank
+from engine.motion.formats import read_motion, write_motion
 from engine.motion.motion import Motion
 from engine.train.windows import canonicalize
 from tests.explorer.conftest import Opened
@@ -30,7 +31,7 @@ def model_and_data(tmp_path_factory, tiny_model_dir: Path, procedural_clips: lis
     data = root / "data"
     data.mkdir()
     for clip in procedural_clips:
-        clip.save(data / names[clip.meta["source"]])
+        write_motion(clip, data / names[clip.meta["source"]])
     return model, data
 
 
@@ -63,7 +64,7 @@ def test_real_clip_is_the_encoded_window_at_the_decodes_start_and_heading(
     decoded, real = (d.motion for d in c.state.shown)
     assert real.n_frames == decoded.n_frames == c.generator.window
 
-    source = Motion.from_file(data / Path(str(c.bank.sources[index])).name)
+    source = read_motion(data / Path(str(c.bank.sources[index])).name)
     start = real.meta["window_start"]
     assert start == (source.n_frames - c.generator.window) // 2  # the centre window, as the bank encodes it
     window = source.joints[start : start + c.generator.window]
@@ -124,7 +125,7 @@ def test_a_long_clip_is_a_path_of_codes_that_plays_in_time_order(
     _, real = (d.motion for d in c.state.shown)
     start = c.bank.meta[late]["window_start"]
     assert real.meta["window_start"] == start > 0  # the clicked window of the clip, not its centre
-    clip = Motion.from_file(data / source).joints[start : start + c.generator.window]
+    clip = read_motion(data / source).joints[start : start + c.generator.window]
     np.testing.assert_allclose(_distances(real.joints), _distances(clip), atol=1e-4)
 
     window.select_clip_action.trigger()
