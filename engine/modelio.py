@@ -219,7 +219,7 @@ def read_weights(path: Path, model: torch.nn.Module, meta: dict[str, Any]) -> di
     return tensors
 
 
-def _read_bank(folder: Path, meta: dict[str, Any]) -> LatentBank | None:
+def read_bank(folder: Path, meta: dict[str, Any]) -> LatentBank | None:
     """The folder's latent bank, verified against model.json, or None when the folder has none."""
     from engine.latent.bank import LatentBank
 
@@ -306,5 +306,5 @@ def read_model_folder(
 def load_model(model_dir: str | Path, device: str = "cpu", with_bank: bool = True) -> LoadedModel:
     """Read an ODMO model folder strictly (see :func:`read_model_folder`), with its latent bank."""
     found = read_model_folder(model_dir, "odmo", OdmoConfig, OdmoModel, device)
-    bank = _read_bank(found.path, found.meta) if with_bank else None
+    bank = read_bank(found.path, found.meta) if with_bank else None
     return LoadedModel(**found.loaded_fields(), bank=bank)

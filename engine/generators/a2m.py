@@ -20,7 +20,7 @@ from engine.generate import Sample, interpolation_codes
 from engine.generators.base import CodeSpace, FolderGenerator, Generator, SampleRequest, refusal, require
 from engine.latent.bank import LatentBank
 from engine.model.a2m import A2mConfig, A2mModel
-from engine.modelio import BANK_FILE, read_model_folder
+from engine.modelio import BANK_FILE, read_bank, read_model_folder
 from engine.motion.motion import Motion
 from engine.motion.skeleton import Skeleton
 from engine.train.windows import prepare_clips, windows_at
@@ -48,10 +48,8 @@ class LoadedA2m:
 
 def load_a2m(model_dir: str | Path, device: str = "cpu") -> LoadedA2m:
     """Read an A2M folder strictly: bad, newer or non-A2M files raise ModelFormatError."""
-    from engine.modelio import _read_bank
-
     found = read_model_folder(model_dir, ARCH, A2mConfig, A2mModel, device)
-    bank = _read_bank(found.path, found.meta) if (found.path / BANK_FILE).is_file() else None
+    bank = read_bank(found.path, found.meta) if (found.path / BANK_FILE).is_file() else None
     return LoadedA2m(**found.loaded_fields(), bank=bank)
 
 
