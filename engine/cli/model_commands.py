@@ -200,15 +200,11 @@ def _cmd_bank(args: argparse.Namespace) -> int:
 
 
 def _bank_locked(args: argparse.Namespace) -> int:
-    from engine.generators import model_kind, open_generator, require
-    from engine.generators.odmo import OdmoGenerator
+    from engine.generators import open_generator, require
     from engine.latent.bank import build_bank
-    from engine.modelio import load_model, save_bank
+    from engine.modelio import save_bank
 
-    if model_kind(args.model) == "odmo":  # a damaged bank must not stop the command that rebuilds it
-        loaded = OdmoGenerator(load_model(args.model, with_bank=False))
-    else:
-        loaded = open_generator(args.model)
+    loaded = open_generator(args.model, with_bank=False)  # a damaged bank must not stop its rebuild
     require(loaded, "encode", "build a latent bank (it cannot encode clips into codes)")
     dataset = _dataset(args)
     unknown = sorted({c.action for c in dataset.clips} - set(loaded.action_names))

@@ -46,10 +46,11 @@ class LoadedA2m:
     bank: LatentBank | None = None
 
 
-def load_a2m(model_dir: str | Path, device: str = "cpu") -> LoadedA2m:
+def load_a2m(model_dir: str | Path, device: str = "cpu", with_bank: bool = True) -> LoadedA2m:
     """Read an A2M folder strictly: bad, newer or non-A2M files raise ModelFormatError."""
     found = read_model_folder(model_dir, ARCH, A2mConfig, A2mModel, device)
-    bank = read_bank(found.path, found.meta) if (found.path / BANK_FILE).is_file() else None
+    with_bank = with_bank and (found.path / BANK_FILE).is_file()
+    bank = read_bank(found.path, found.meta) if with_bank else None
     return LoadedA2m(**found.loaded_fields(), bank=bank)
 
 
@@ -291,6 +292,6 @@ class A2mGenerator(FolderGenerator):
         return self._samples(joints, codes, index, self._modes_of(codes, index), {"interpolation": method})
 
 
-def open_a2m(path: Path, device: str) -> Generator:
+def open_a2m(path: Path, device: str, with_bank: bool = True) -> Generator:
     """Open an Action2Motion folder."""
-    return A2mGenerator(load_a2m(path, device=device))
+    return A2mGenerator(load_a2m(path, device=device, with_bank=with_bank))

@@ -178,7 +178,7 @@ class Generator(Protocol):
         ...
 
 
-Opener = Callable[[Path, str], Generator]
+Opener = Callable[[Path, str, bool], Generator]  # (folder, device, with_bank)
 _KINDS: dict[str, Opener] = {}
 
 
@@ -208,9 +208,10 @@ def model_kind(path: str | Path) -> str:
     return arch
 
 
-def open_generator(path: str | Path, device: str = "cpu") -> Generator:
-    """The generator in a model folder, of whichever registered kind its ``model.json`` names."""
-    return _KINDS[model_kind(path)](Path(path), device)
+def open_generator(path: str | Path, device: str = "cpu", with_bank: bool = True) -> Generator:
+    """The generator in a model folder, of whichever registered kind its ``model.json`` names; without
+    its latent bank when ``with_bank`` is False (so that a damaged bank can be rebuilt)."""
+    return _KINDS[model_kind(path)](Path(path), device, with_bank)
 
 
 def refusal(generator: Generator, capability: str, asked: str | None = None) -> CapabilityError:

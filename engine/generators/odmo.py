@@ -133,6 +133,6 @@ class OdmoGenerator(FolderGenerator):
         return generate.follow_path(self.loaded, path_xz, action)
 
 
-def open_odmo(path: Path, device: str) -> Generator:
+def open_odmo(path: Path, device: str, with_bank: bool = True) -> Generator:
     """Open an ODMO model folder."""
-    return OdmoGenerator(load_model(path, device=device))
+    return OdmoGenerator(load_model(path, device=device, with_bank=with_bank))
