@@ -157,7 +157,7 @@ class Gestures:
             what = f"#{start} → #{target}"
         else:
             code_b = self._code_at(xy)[0]
-            end_b = self.c.bank.end_location(code_b[None], action)[0]
+            end_b = self.c.bank.end_location(code_b[None], action)[0] if self.c.can("end") else None
             what = f"#{start} → ({x:.2f}, {y:.2f})"
         self.interpolate(code_a, code_b, action, end_a, end_b, what, action_b)
 
@@ -190,7 +190,6 @@ class Gestures:
         across = action_b is not None and action_b != action
         if self.c.refuse("interpolate_across" if across else "interpolate"):
             return
-        with_end = self.c.can("end")
         request = StripDecode(
             self.c.generator,
             frozen_array(code_a),
@@ -199,8 +198,8 @@ class Gestures:
             int(action if action_b is None else action_b),
             self.c.window.steps_spin.value(),
             what,
-            frozen_array(end_a) if with_end else None,
-            frozen_array(end_b) if with_end else None,
+            frozen_array(end_a),  # None for kinds that take no end (see bank_item)
+            frozen_array(end_b),
         )
         self.c.decoder.submit(request.run)
 
