@@ -14,6 +14,7 @@ import logging
 import os
 import re
 import tempfile
+import time
 from collections.abc import Iterator
 from pathlib import Path
 from typing import IO
@@ -113,6 +114,20 @@ def atomic_write_text(path: str | Path, text: str) -> None:
         handle.write(text)
 
 
+HOLDER_WAIT_S = 0.5  # how long a refused locker waits for the holder to write its pid
+
+
+def _lock_holder(fd: int) -> str:
+    """The lock holder's "pid N" from the lock file; the holder writes it just after locking, so an empty
+    file is read again for up to ``HOLDER_WAIT_S``."""
+    deadline = time.monotonic() + HOLDER_WAIT_S
+    while True:
+        text = os.pread(fd, 64, 0).decode("ascii", "replace").strip()
+        if text or time.monotonic() > deadline:
+            return text or "another process"
+        time.sleep(0.01)
+
+
 @contextlib.contextmanager
 def folder_lock(folder: str | Path, what: str = "writing") -> Iterator[Path]:
     """Hold an advisory exclusive lock on ``folder`` (created if missing) while the block runs.
@@ -132,7 +147,7 @@ def folder_lock(folder: str | Path, what: str = "writing") -> Iterator[Path]:
         except OSError as exc:
             if exc.errno not in (errno.EWOULDBLOCK, errno.EAGAIN, errno.EACCES):
                 raise
-            holder = os.pread(fd, 64, 0).decode("ascii", "replace").strip() or "another process"
+            holder = _lock_holder(fd)
             raise FolderBusyError(
                 f"{folder}: another odmo process ({holder}) is {what} there; wait for it to finish "
                 "or choose another folder"
