@@ -14,6 +14,7 @@ clips with ``engine.metrics.evaluate`` and writes the model folder with MODEL_CA
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import platform
 import shutil
@@ -57,6 +58,13 @@ def parse_args() -> argparse.Namespace:
     p.add_argument(
         "--contrastive-pull", type=float, default=0.0, help="weight of the same-action pull (1: the paper's)"
     )
+    p.add_argument(
+        "--weight",
+        action="append",
+        default=[],
+        metavar="NAME=VALUE",
+        help="a loss weight of OdmoConfig (w_*), e.g. --weight w_skate=0.01; repeatable",
+    )
     p.add_argument("--classifier-epochs", type=int, default=20)
     p.add_argument(
         "--classifier-lr-floor", type=float, default=1.0, help="classifier lr cosine floor (1: constant)"
@@ -75,6 +83,7 @@ def parse_args() -> argparse.Namespace:
 def main() -> int:
     """Train, evaluate and package the default model."""
     args = parse_args()
+    weights = loss_weights(args.weight)
     torch.set_num_threads(args.threads)
     dataset = load_folder(args.data)
     train_clips, test_clips = heldout_split(dataset.clips)
@@ -85,6 +94,7 @@ def main() -> int:
         epochs=args.epochs,
         tf_decay_epochs=args.tf_decay_epochs,
         contrastive_pull=args.contrastive_pull,
+        **weights,
     )
     work = args.work
     started = time.time()
@@ -181,6 +191,21 @@ def main() -> int:
     )
     print(f"default model written to {out} ({_size_mb(out):.1f} MB)")
     return 0
+
+
+def loss_weights(pairs: list[str]) -> dict[str, float]:
+    """``["w_skate=0.01", ...]`` as config fields; a name that is not a loss weight exits with its name."""
+    weights = {f.name for f in dataclasses.fields(OdmoConfig) if f.name.startswith("w_")}
+    out = {}
+    for pair in pairs:
+        name, _, value = pair.partition("=")
+        if name not in weights:
+            raise SystemExit(f"--weight {pair}: not a loss weight (one of {', '.join(sorted(weights))})")
+        try:
+            out[name] = float(value)
+        except ValueError:
+            raise SystemExit(f"--weight {pair}: {value!r} is not a number") from None
+    return out
 
 
 def card_argv(argv: list[str]) -> list[str]:
