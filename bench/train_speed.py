@@ -23,7 +23,8 @@ from bench._report import record
 from engine.model.config import TRAIN_PRECISIONS, OdmoConfig
 from engine.motion.motion import Motion
 from engine.motion.skeleton import Skeleton
-from engine.train.loop import TrainProgress, train
+from engine.train.epochs import TrainProgress
+from engine.train.loop import train
 
 N_ACTIONS, N_JOINTS = 10, 21
 

@@ -23,7 +23,7 @@ if TYPE_CHECKING:
     from engine.generate import Sample
     from engine.generators import Generator
     from engine.motion.datasets import Dataset
-    from engine.train.loop import TrainProgress
+    from engine.train.epochs import TrainProgress
 
 # torch and the model code are imported inside the commands, so that `odmo --help` stays quick.
 
@@ -83,7 +83,7 @@ def endpoint_code(generator: Generator, text: str, action: str) -> np.ndarray:
     if kind == "m":
         if index not in bank.modes:
             raise ConfigError(f"action {action!r} has no modes in the latent bank")
-        means = bank.modes[index].means
+        means = bank.modes[index].means_
         if number >= len(means):
             raise ConfigError(f"action {action!r} has modes m0..m{len(means) - 1}")
         return np.asarray(means[number], dtype=np.float32)
@@ -237,7 +237,7 @@ def _bank_locked(args: argparse.Namespace) -> int:
     finally:
         progress.close()
     path = save_bank(loaded.path, bank)
-    sizes = ", ".join(f"{loaded.action_names[a]}: {m.n_modes}" for a, m in sorted(bank.modes.items()))
+    sizes = ", ".join(f"{loaded.action_names[a]}: {m.n_modes_}" for a, m in sorted(bank.modes.items()))
     print(f"{path}: {len(codes)} codes; modes {sizes}")
     return 0
 

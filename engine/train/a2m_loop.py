@@ -4,10 +4,7 @@ from __future__ import annotations
 
 import logging
 import math
-import platform
-import time
 from collections.abc import Callable, Sequence
-from datetime import UTC, datetime
 from pathlib import Path
 
 import numpy as np
@@ -15,15 +12,21 @@ import torch
 from scipy.spatial.transform import Rotation
 from sklearn.decomposition import PCA
 
-from engine import __version__
-from engine.errors import CancelledError, ConfigError, ModelFormatError
 from engine.latent.bank import LatentBank, build_bank
 from engine.model.a2m import A2M_LOSS_TERMS, A2mConfig, A2mModel, a2m_losses
 from engine.modelio import resolve_device, save_bank, write_model_folder
 from engine.motion.ik import joints_to_rotations
 from engine.motion.motion import Motion
-from engine.train.checkpoint import checkpoint_path, load_checkpoint, save_checkpoint
-from engine.train.loop import LOG_FILE, TrainProgress, TrainResult, write_log
+from engine.train.epochs import (
+    TrainProgress,
+    TrainResult,
+    check_sizes,
+    provenance,
+    root_height,
+    run_epochs,
+    run_identity,
+    split_metas,
+)
 from engine.train.pairs import PairSampler, split_clips
 from engine.train.windows import PreparedClips, WindowBatch, crop_windows, prepare_clips
 
@@ -46,6 +49,56 @@ def _losses(
     actions = torch.from_numpy(np.asarray(batch.actions, np.int64)).to(device)
     out = model(joints, actions, teacher=teacher, generator=generator)
     return a2m_losses(model.config, joints, mask, out, batch.root)
+
+
+class A2mSteps:
+    """Action2Motion's training step: class-balanced windows, the whole batch teacher-forced with
+    probability ``tf_rate``, Adam with weight decay and gradient clipping; validation free-running."""
+
+    terms = _TERMS
+
+    def __init__(
+        self, model: A2mModel, prepared: PreparedClips, train_idx: np.ndarray, validation: WindowBatch | None
+    ) -> None:
+        self.model = self.modules = model
+        self.config = model.config
+        self.prepared = prepared
+        self.sampler = PairSampler(prepared.actions, train_idx)
+        self.validation = validation
+        self.device = next(model.parameters()).device
+        lr, decay = self.config.lr, self.config.weight_decay
+        self.optimizer = torch.optim.Adam(model.parameters(), lr=lr, weight_decay=decay)
+        self.optimizers = (self.optimizer,)
+        self.windows_per_step = self.config.batch_size
+        self.batches = self.teacher_batches = 0
+
+    def step(self, epoch: int, rng: np.random.Generator, generator: torch.Generator) -> dict[str, float]:
+        """One Adam step on a fresh batch, teacher-forced or free-running by a coin flip."""
+        anchors, _ = self.sampler.anchors(self.config.batch_size, rng)
+        batch = crop_windows(self.prepared, anchors, rng)
+        teacher = bool(rng.random() < self.config.tf_rate)
+        self.batches += 1
+        self.teacher_batches += teacher
+        terms = _losses(self.model, batch, self.device, teacher=teacher, generator=generator)
+        self.optimizer.zero_grad(set_to_none=True)
+        terms["total"].backward()
+        torch.nn.utils.clip_grad_norm_(self.model.parameters(), self.config.grad_clip)
+        self.optimizer.step()
+        return {k: float(v.detach()) for k, v in terms.items()}
+
+    def validate(self) -> dict[str, float] | None:
+        """Loss terms of the validation windows, free-running from the posterior means."""
+        if self.validation is None:
+            return None
+        with torch.no_grad():
+            terms = _losses(self.model, self.validation, self.device, teacher=False, generator=None)
+        return {k: float(v) for k, v in terms.items()}
+
+    def epoch_columns(self, epoch: int) -> dict[str, float]:
+        """The share of the epoch's batches that were teacher-forced."""
+        share = self.teacher_batches / max(1, self.batches)
+        self.batches = self.teacher_batches = 0
+        return {"teacher_batches": share}
 
 
 def rest_rotations(prepared: PreparedClips, indices: np.ndarray) -> np.ndarray:
@@ -101,14 +154,12 @@ def a2m_bank(
     means, ends = posterior_means(model, prepared, everything)
     with torch.no_grad():
         codes = model.z_to_codes(torch.from_numpy(means).to(model.code_mean)).cpu().numpy()
-    in_val = np.isin(everything, val_idx)
-    metas = [m | {"split": "val" if v else "train"} for m, v in zip(prepared.meta, in_val, strict=True)]
     return build_bank(
         codes,
         prepared.actions,
         ends,
         prepared.sources,
-        metas,
+        split_metas(prepared, val_idx),
         prepared.action_names,
         k_range=k_range,
         projections=tuple(projections),
@@ -144,129 +195,46 @@ def train_a2m(
     out = Path(out_dir)
     dev = resolve_device(device)
     prepared = prepare_clips(clips, action_names, config.fps, config.window)
-    if config.n_actions != len(prepared.action_names) or config.n_joints != prepared.skeleton.n_joints:
-        raise ConfigError(
-            f"config has {config.n_actions} actions and {config.n_joints} joints, data has "
-            f"{len(prepared.action_names)} and {prepared.skeleton.n_joints}"
-        )
-    fingerprint = prepared.fingerprint()
+    check_sizes(config.n_actions, config.n_joints, prepared)
     train_idx, val_idx = split_clips(prepared.actions, val_fraction, seed)
-    sampler = PairSampler(prepared.actions, train_idx)
-    validation = crop_windows(prepared, val_idx, None) if len(val_idx) else None
-
     model = A2mModel(config, seed=seed)
     if config.pose_rep == "lie":
         model.set_skeleton(prepared.skeleton)
         model.set_rest_bias(rest_rotations(prepared, train_idx))
     model = model.to(dev)
-    optimizer = torch.optim.Adam(model.parameters(), lr=config.lr, weight_decay=config.weight_decay)
-    rng = np.random.default_rng(seed)
-    tgen = torch.Generator(dev).manual_seed(seed)
-    rows: list[dict[str, float]] = []
-    start_epoch, train_seconds = 0, 0.0
-    ckpt = checkpoint_path(out)
-    identity = {
-        "config": {k: v for k, v in config.to_dict().items() if k != "epochs"},
-        "fingerprint": fingerprint,
-        "seed": seed,
-        "val_fraction": val_fraction,
-    }
-    if resume and ckpt.exists():
-        start_epoch, extra = load_checkpoint(ckpt, model=model, optimizer=optimizer, rng=rng, torch_rng=tgen)
-        if extra.get("identity") != identity:
-            raise ModelFormatError(f"{ckpt}: checkpoint is from a different config, seed or data set")
-        rows, train_seconds = list(extra["log"]), float(extra["train_seconds"])
-        log.info("resuming %s after epoch %d", out, start_epoch)
-
-    steps = max(1, math.ceil(config.epoch_size / config.batch_size))
-    train_losses: dict[str, float] = {}
-    val_losses: dict[str, float] | None = None
-    rate = 0.0
-    for epoch in range(start_epoch, config.epochs):
-        model.train()
-        sums = dict.fromkeys(_TERMS, 0.0)
-        n_teacher = 0
-        t0 = time.perf_counter()
-        for step in range(steps):
-            if cancel is not None and cancel():
-                raise CancelledError(f"training cancelled in epoch {epoch + 1}; resume from {ckpt}")
-            anchors, _ = sampler.anchors(config.batch_size, rng)
-            batch = crop_windows(prepared, anchors, rng)
-            teacher = bool(rng.random() < config.tf_rate)
-            n_teacher += teacher
-            terms = _losses(model, batch, dev, teacher=teacher, generator=tgen)
-            optimizer.zero_grad(set_to_none=True)
-            terms["total"].backward()
-            torch.nn.utils.clip_grad_norm_(model.parameters(), config.grad_clip)
-            optimizer.step()
-            for k in _TERMS:
-                sums[k] += float(terms[k].detach())
-            rate = (step + 1) / (time.perf_counter() - t0)
-            if progress is not None:
-                left = (steps - step - 1) + (config.epochs - epoch - 1) * steps
-                progress(
-                    TrainProgress(
-                        stage="train",
-                        epoch=epoch + 1,
-                        epochs=config.epochs,
-                        step=step + 1,
-                        steps=steps,
-                        losses={k: v / (step + 1) for k, v in sums.items()},
-                        val_losses=val_losses,
-                        windows_per_s=rate * config.batch_size,
-                        steps_per_s=rate,
-                        eta_s=left / rate,
-                        fraction=(epoch * steps + step + 1) / (config.epochs * steps),
-                    )
-                )
-        epoch_seconds = time.perf_counter() - t0
-        train_seconds += epoch_seconds
-        train_losses = {k: v / steps for k, v in sums.items()}
-        if validation is not None:
-            model.eval()
-            with torch.no_grad():
-                val_terms = _losses(model, validation, dev, teacher=False, generator=None)
-            val_losses = {k: float(v) for k, v in val_terms.items()}
-        row = {"epoch": epoch + 1, "teacher_batches": n_teacher / steps}
-        row |= {f"train_{k}": v for k, v in train_losses.items()}
-        row |= {f"val_{k}": (val_losses or {}).get(k, float("nan")) for k in _TERMS}
-        row |= {"seconds": epoch_seconds, "windows_per_s": steps * config.batch_size / epoch_seconds}
-        rows.append(row)
-        if (epoch + 1) % checkpoint_every == 0 or epoch + 1 == config.epochs:
-            write_log(out / LOG_FILE, rows)
-            extra = {"identity": identity, "log": rows, "train_seconds": train_seconds}
-            save_checkpoint(
-                ckpt, epoch=epoch + 1, model=model, optimizer=optimizer, rng=rng, torch_rng=tgen, extra=extra
-            )
-
-    write_log(out / LOG_FILE, rows)
-    model.eval()
+    validation = crop_windows(prepared, val_idx, None) if len(val_idx) else None
+    steps = A2mSteps(model, prepared, train_idx, validation)
+    steps_per_epoch = max(1, math.ceil(config.epoch_size / config.batch_size))
+    run = run_epochs(
+        steps,
+        out,
+        config,
+        run_identity(config, prepared.fingerprint(), seed, val_fraction),
+        epochs=config.epochs,
+        steps_per_epoch=steps_per_epoch,
+        rng=np.random.default_rng(seed),
+        generator=torch.Generator(dev).manual_seed(seed),
+        resume=resume,
+        progress=progress,
+        cancel=cancel,
+        checkpoint_every=checkpoint_every,
+    )
     if config.code_dim:
         fit_code_space(model, prepared, train_idx)
-    provenance = {
-        "arch": "a2m",
-        "data_fingerprint": fingerprint,
-        "n_clips": prepared.n_clips,
-        "n_train": len(train_idx),
-        "n_val": len(val_idx),
-        "seed": seed,
-        "epochs": config.epochs,
-        "windows_seen": config.epochs * steps * config.batch_size,
-        "train_seconds": round(train_seconds, 3),
-        "device": str(dev),
-        "created": datetime.now(UTC).isoformat(timespec="seconds"),
-        "train_sources": [prepared.sources[i] for i in train_idx],
-        "versions": {
-            "odmo_explorer": __version__,
-            "torch": torch.__version__,
-            "numpy": np.__version__,
-            "python": platform.python_version(),
-        },
-    }
-    root = prepared.skeleton.root
-    root_height = float(np.median(np.concatenate([j[:, root, 1] for j in prepared.joints])))
+    made = provenance(
+        prepared,
+        (train_idx, val_idx),
+        run,
+        seed=seed,
+        epochs=config.epochs,
+        device=dev,
+        arch="a2m",
+        windows_seen=config.epochs * steps_per_epoch * config.batch_size,
+        train_sources=[prepared.sources[i] for i in train_idx],
+    )
+    height = root_height(prepared)
     write_model_folder(
-        out, model, config.to_dict(), prepared.skeleton, prepared.action_names, provenance, root_height, "a2m"
+        out, model, config.to_dict(), prepared.skeleton, prepared.action_names, made, height, "a2m"
     )
     if config.code_dim:
         bank = a2m_bank(
@@ -276,10 +244,10 @@ def train_a2m(
     return TrainResult(
         model_dir=out,
         epochs=config.epochs,
-        train_losses=train_losses,
-        val_losses=val_losses,
-        windows_per_s=rate * config.batch_size,
-        train_seconds=train_seconds,
+        train_losses=run.train_losses,
+        val_losses=run.val_losses,
+        windows_per_s=run.windows_per_s,
+        train_seconds=run.train_seconds,
         n_train=len(train_idx),
         n_val=len(val_idx),
     )

@@ -1,8 +1,9 @@
-"""Atomic training checkpoints: model, optimiser, RNG states, epoch and the log so far."""
+"""Atomic training checkpoints: modules, optimisers, RNG states, epoch and the log so far."""
 
 from __future__ import annotations
 
 import io
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -26,7 +27,7 @@ def save_checkpoint(
     *,
     epoch: int,
     model: torch.nn.Module,
-    optimizer: torch.optim.Optimizer,
+    optimizers: Sequence[torch.optim.Optimizer],
     rng: np.random.Generator,
     torch_rng: torch.Generator,
     extra: dict[str, Any],
@@ -36,7 +37,7 @@ def save_checkpoint(
     payload = {
         "epoch": int(epoch),
         "model": model.state_dict(),
-        "optimizer": optimizer.state_dict(),
+        "optimizers": [o.state_dict() for o in optimizers],
         # PCG64 state words exceed 64 bits; strings keep them exact under weights_only loading.
         "numpy_rng": {k: v for k, v in state.items() if k != "state"},
         "numpy_rng_words": {k: str(v) for k, v in state["state"].items()},
@@ -52,16 +53,21 @@ def load_checkpoint(
     path: str | Path,
     *,
     model: torch.nn.Module,
-    optimizer: torch.optim.Optimizer,
+    optimizers: Sequence[torch.optim.Optimizer],
     rng: np.random.Generator,
     torch_rng: torch.Generator,
 ) -> tuple[int, dict[str, Any]]:
-    """Restore the states saved by ``save_checkpoint``; returns the epoch count and the extra dictionary."""
+    """Restore the states saved by ``save_checkpoint`` (or by its one-optimiser version before); returns
+    the epoch count and the extra dictionary."""
     path = Path(path)
     try:
         payload = torch.load(path, map_location="cpu", weights_only=True)
         model.load_state_dict(payload["model"])
-        optimizer.load_state_dict(payload["optimizer"])
+        saved = payload["optimizers"] if "optimizers" in payload else [payload["optimizer"]]
+        if len(saved) != len(optimizers):
+            raise ValueError(f"{len(saved)} optimiser states for {len(optimizers)} optimisers")
+        for optimizer, state_dict in zip(optimizers, saved, strict=True):
+            optimizer.load_state_dict(state_dict)
         state = dict(payload["numpy_rng"])
         state["state"] = {k: int(v) for k, v in payload["numpy_rng_words"].items()}
         rng.bit_generator.state = state

@@ -13,7 +13,8 @@ from safetensors.torch import load_file
 from engine.errors import CancelledError, ModelFormatError
 from engine.model.losses import LOSS_TERMS
 from engine.motion.motion import Motion
-from engine.train.loop import TrainProgress, train, write_log
+from engine.train.epochs import TrainProgress, write_log
+from engine.train.loop import train
 from engine.train.pairs import PairSampler, split_clips
 from tests.fixtures.procedural import PROCEDURAL_ACTIONS
 from tests.fixtures.tiny_model import single_thread, tiny_config
