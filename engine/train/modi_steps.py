@@ -128,9 +128,9 @@ class ModiSteps:
         )
         self.last_r1 = 0.0
         val_idx = np.asarray(val_idx, dtype=np.int64)[:MAX_VALIDATION]
-        self.val_real = g.coder.normalise(self._raw(g, crop_windows(prepared, val_idx, None))) if len(
-            val_idx
-        ) else None
+        self.val_real = (
+            g.coder.normalise(self._raw(g, crop_windows(prepared, val_idx, None))) if len(val_idx) else None
+        )
         val_gen = torch.Generator(g.w_avg.device).manual_seed(seed + 2)
         self.val_z = torch.randn(max(len(val_idx), 1), config.w_dim, generator=val_gen, device=g.w_avg.device)
 
@@ -187,7 +187,7 @@ class ModiSteps:
         self._update_ema()
         self.counter.steps += 1
         values = (d_loss, self.last_r1, g_adv, touch, fcon, total)
-        return {k: float(v) for k, v in zip(TERMS, values, strict=True)}
+        return _floats(values)
 
     @torch.no_grad()
     def _update_ema(self) -> None:
@@ -212,11 +212,16 @@ class ModiSteps:
         g_adv = g_adversarial(fake_logits)
         total = g_adv + config.touch_weight * touch + config.fcon_weight * fcon
         values = (d_adversarial(real_logits, fake_logits), r1, g_adv, touch, fcon, total)
-        return {k: float(v) for k, v in zip(TERMS, values, strict=True)}
+        return _floats(values)
 
     def epoch_columns(self, epoch: int) -> dict[str, float]:
         """The steps taken so far and the size of the mean w."""
         return {"steps": float(self.counter.steps), "w_avg_norm": float(self.g.w_avg.norm())}
+
+
+def _floats(values: tuple[Tensor | float, ...]) -> dict[str, float]:
+    """The terms as plain numbers."""
+    return {k: float(v.detach() if isinstance(v, Tensor) else v) for k, v in zip(TERMS, values, strict=True)}
 
 
 def steps_per_epoch(config: ModiConfig) -> int:
