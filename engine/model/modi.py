@@ -132,7 +132,7 @@ class _StyledConv(nn.Module):
                 if noise == "const"
                 else torch.randn(shape, generator=generator, device=out.device, dtype=out.dtype)
             )
-            out = (out.view(b, self.conv.e_out, -1, t) + self.noise_strength * n).view(b, -1, t)
+            out = (out.reshape(b, self.conv.e_out, -1, t) + self.noise_strength * n).view(b, -1, t)
         out = out + self.bias[:, None]
         return lrelu(out) if self.activate else out
 
@@ -264,12 +264,12 @@ class ModiGenerator(nn.Module):
             i += 2
             if skip is not None:
                 b, _, t = skip.shape
-                skip = skip.view(b, -1, FEATURES, t)
+                skip = skip.reshape(b, -1, FEATURES, t)
                 skip = torch.einsum("fc,bckt->bfkt", getattr(self, f"unpool{level}"), skip).flatten(1, 2)
                 y = y + F.interpolate(skip, scale_factor=2.0, mode="linear", align_corners=False)
             skip = y
         b, _, t = skip.shape
-        return skip.view(b, -1, FEATURES, t) * self.coder.feature_mask[:, :, None]
+        return skip.reshape(b, -1, FEATURES, t) * self.coder.feature_mask[:, :, None]
 
     def forward(self, z: Tensor, psi: float = 1.0, noise: str = "const", generator=None) -> Tensor:
         """Normalised motion features (B, E, K, T) of z (B, w_dim) with truncation ``psi``."""
@@ -313,8 +313,8 @@ class ModiDiscriminator(nn.Module):
             h = (lrelu(down(lrelu(conv(h)))) + skip(h)) / math.sqrt(2.0)
         b, _, t = h.shape
         group = next(g for g in (4, 3, 2, 1) if b % g == 0)
-        spread = h.view(group, -1, *h.shape[1:]).std(0, unbiased=False).mean((1, 2))
+        spread = h.reshape(group, -1, *h.shape[1:]).std(0, unbiased=False).mean((1, 2))
         spread = spread.repeat(group)[:, None, None, None].expand(-1, self.n_top, 1, t)
-        h = torch.cat([h.view(b, self.n_top, -1, t), spread], 2).flatten(1, 2)
+        h = torch.cat([h.reshape(b, self.n_top, -1, t), spread], 2).flatten(1, 2)
         h = lrelu(self.final_conv(h))
-        return self.logit(lrelu(self.final_fc(h.flatten(1))))[:, 0]
+        return self.logit(lrelu(self.final_fc(h.reshape(b, -1))))[:, 0]

@@ -39,9 +39,8 @@ def contact_activation(contacts: Tensor) -> Tensor:
 def contact_losses(coder: MotionCoder, x: Tensor, fps: float) -> tuple[Tensor, Tensor]:
     """``touch`` = E[−log s(c)] (eq. 4) and ``fcon`` = E[‖foot velocity‖² · s(c)] (eq. 5, m²/s², the
     velocity of each foot joint by forward kinematics) of network features ``x`` (B, E, K, T)."""
-    _, _, contacts = coder.split(x)
-    joints = coder.joints(x)
+    feet, contacts = coder.feet_and_contacts(x)
     touch = F.softplus(-CONTACT_SHARPNESS * (contacts - 0.5)).mean()
-    velocity = joints[:, :, coder.feet].diff(dim=1) * fps
+    velocity = feet.diff(dim=1) * fps
     fcon = (velocity.square().sum(-1) * contact_activation(contacts[:, 1:])).mean()
     return touch, fcon

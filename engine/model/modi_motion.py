@@ -30,6 +30,11 @@ class MotionCoder(nn.Module):
         super().__init__()
         self.parents = np.asarray(skeleton.parents)
         self.feet = foot_joints(skeleton)
+        chain = sorted({a for f in self.feet for a in _ancestors(skeleton.parents, f)})
+        self.foot_chain = chain  # the joints forward kinematics needs to place the feet
+        self.foot_chain_parents = np.array(
+            [chain.index(p) if p >= 0 else -1 for p in skeleton.parents[chain]]
+        )
         self.n_joints = skeleton.n_joints
         offsets = torch.tensor(np.array(skeleton.offsets), dtype=torch.float32)
         offsets[skeleton.root] = 0.0
@@ -88,3 +93,21 @@ class MotionCoder(nn.Module):
         """(B, T, J, 3) joint positions of network features (B, E, K, T)."""
         rotations, root, _ = self.split(x)
         return forward_kinematics(rotations, self.offsets, self.parents, root)
+
+    def feet_and_contacts(self, x: Tensor) -> tuple[Tensor, Tensor]:
+        """Foot joint positions (B, T, F, 3) and contact values (B, T, F) of network features (B, E, K, T)
+        (forward kinematics of the feet's chains only)."""
+        rotations, root, contacts = self.split(x)
+        chain = self.foot_chain
+        placed = forward_kinematics(
+            rotations[:, :, chain], self.offsets[chain], self.foot_chain_parents, root
+        )
+        return placed[:, :, [chain.index(f) for f in self.feet]], contacts
+
+
+def _ancestors(parents: np.ndarray, joint: int) -> list[int]:
+    """``joint`` and every joint above it."""
+    found = [joint]
+    while parents[found[-1]] >= 0:
+        found.append(int(parents[found[-1]]))
+    return found

@@ -153,6 +153,27 @@ def pooling_mask(fine: SkeletonLevel, coarse: SkeletonLevel) -> np.ndarray:
     return mask
 
 
+#: The cost, in entity pairs, of one more matrix product in a skeletal convolution (measured on a CPU).
+BLOCK_OVERHEAD = 4
+
+
+def plan_blocks(mask: np.ndarray) -> list[tuple[int, int, np.ndarray]]:
+    """Runs of consecutive output entities (start, stop, the input entities any of them sees), greedily
+    grown while one product over the run's inputs costs less than a separate one."""
+    blocks: list[tuple[int, int, np.ndarray]] = []
+    for e in range(mask.shape[0]):
+        if blocks:
+            start, _, seen = blocks[-1]
+            union = seen | mask[e]
+            merged = (e + 1 - start) * union.sum()
+            apart = (e - start) * seen.sum() + mask[e].sum() + BLOCK_OVERHEAD
+            if merged <= apart:
+                blocks[-1] = (start, e + 1, union)
+                continue
+        blocks.append((e, e + 1, mask[e].copy()))
+    return [(a, b, np.flatnonzero(seen)) for a, b, seen in blocks]
+
+
 class SkeletalConv(nn.Module):
     """Temporal convolution over (B, E_in·C_in, T) features (entity-major) to (B, E_out·C_out, T′), each
     output entity's kernel seeing only the input entities ``mask`` (E_out, E_in) allows.
@@ -161,6 +182,8 @@ class SkeletalConv(nn.Module):
     1/√fan-in (equalised learning rate). ``forward`` with a style (B, C_in) modulates the input channels
     and, with ``demodulate``, normalises each output channel's weights (StyleGAN2, eqs. 10 and 11).
     ``resample``: "up" doubles the frames (linear) before the kernel, "down" halves them (mean) after it.
+    The convolution runs as one matrix product per block of output entities (``plan_blocks``) over the
+    frames of the inputs the block sees.
     """
 
     def __init__(
@@ -187,6 +210,12 @@ class SkeletalConv(nn.Module):
         fan_in = mask.sum(axis=1).repeat(c_out) * c_in * kernel
         self.register_buffer("scale", torch.as_tensor(1.0 / np.sqrt(fan_in), dtype=torch.float32), False)
         self.bias = nn.Parameter(torch.zeros(self.e_out * c_out)) if bias else None
+        self.blocks = []
+        for start, stop, inputs in plan_blocks(mask):
+            rows = np.flatnonzero((pairs[:, 0] >= start) & (pairs[:, 0] < stop))
+            local = (pairs[rows, 0] - start, np.searchsorted(inputs, pairs[rows, 1]))
+            whole = len(inputs) == self.e_in
+            self.blocks.append((start, stop, None if whole else torch.as_tensor(inputs), rows, local))
 
     def dense_weight(self) -> Tensor:
         """(E_out·C_out, E_in·C_in, U) scaled weights, zero outside the mask."""
@@ -195,18 +224,33 @@ class SkeletalConv(nn.Module):
         dense = dense.permute(0, 2, 1, 3, 4).reshape(self.e_out * self.c_out, self.e_in * self.c_in, -1)
         return dense * self.scale[:, None, None]
 
+    def _block_weight(self, start: int, stop: int, n_in: int, rows: np.ndarray, local: tuple) -> Tensor:
+        """(n_out·C_out, n_in·C_in·U) scaled weights of one block."""
+        block = self.weight.new_zeros(stop - start, n_in, self.c_out, self.c_in, self.kernel)
+        block = block.index_put((torch.as_tensor(local[0]), torch.as_tensor(local[1])), self.weight[rows])
+        block = block.permute(0, 2, 1, 3, 4).reshape((stop - start) * self.c_out, -1)
+        return block * self.scale[start * self.c_out : stop * self.c_out, None]
+
     def forward(self, x: Tensor, style: Tensor | None = None) -> Tensor:
         """Convolve ``x`` (B, E_in·C_in, T), modulated by ``style`` (B, C_in) when given."""
-        weight = self.dense_weight()
         if style is not None:
-            s = style.repeat(1, self.e_in)
-            x = x * s[:, :, None]
+            x = x * style.repeat(1, self.e_in)[:, :, None]
         if self.resample == "up":
             x = F.interpolate(x, scale_factor=2.0, mode="linear", align_corners=False)
-        out = F.conv1d(x, weight, padding=self.kernel // 2)
+        b, _, t = x.shape
+        pad = self.kernel // 2
+        frames = F.pad(x, (pad, pad)).unfold(2, self.kernel, 1).transpose(1, 2).reshape(b * t, self.e_in, -1)
+        parts = []
+        for start, stop, inputs, rows, local in self.blocks:
+            seen = frames if inputs is None else frames.index_select(1, inputs)
+            weight = self._block_weight(start, stop, seen.shape[1], rows, local)
+            parts.append(seen.flatten(1) @ weight.T)
+        out = torch.cat(parts, 1).view(b, t, -1).transpose(1, 2)
         if style is not None and self.demodulate:
-            energy = (s * s) @ weight.square().sum(-1).T
-            out = out * torch.rsqrt(energy + 1e-8)[:, :, None]
+            energy = self.weight.square().sum(-1)  # (pairs, C_out, C_in)
+            per_out = energy.new_zeros(self.e_out, self.c_out, self.c_in).index_add(0, self.pairs[0], energy)
+            per_out = per_out.flatten(0, 1) * self.scale[:, None].square()
+            out = out * torch.rsqrt(style.square() @ per_out.T + 1e-8)[:, :, None]
         if self.resample == "down":
             out = F.avg_pool1d(out, 2)
         if self.bias is not None:

@@ -347,3 +347,15 @@ def test_training_steps_stay_finite_and_resume_the_r1_schedule(procedural_clips:
     rng2, gen2 = np.random.default_rng(0), torch.Generator().manual_seed(0)
     logs2 = [again.step(0, rng2, gen2) for _ in range(5)]
     assert logs2 == logs  # seeded: the same run
+
+
+def test_feet_by_their_chains_are_the_full_forward_kinematics(
+    small_models: tuple[ModiGenerator, ModiDiscriminator],
+) -> None:
+    g, _ = small_models
+    with torch.no_grad():
+        x = g(torch.randn(3, 32))
+        feet, _ = g.coder.feet_and_contacts(x)
+        full = g.coder.joints(x)
+    assert g.coder.foot_chain == [0, 7, 8, 9, 10]  # hips, both legs: not the spine or the arms
+    torch.testing.assert_close(feet, full[:, :, g.coder.feet])
