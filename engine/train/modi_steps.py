@@ -80,11 +80,12 @@ def window_features(
 
 
 class _Counter(nn.Module):
-    """The number of steps taken, as a buffer so that checkpoints keep it."""
+    """The steps taken and the last R1 penalty, as buffers so that checkpoints keep them."""
 
     def __init__(self) -> None:
         super().__init__()
         self.register_buffer("steps", torch.zeros((), dtype=torch.int64))
+        self.register_buffer("last_r1", torch.zeros(()))
 
 
 def _trainable(module: nn.Module, flag: bool) -> None:
@@ -94,9 +95,12 @@ def _trainable(module: nn.Module, flag: bool) -> None:
 
 class ModiSteps:
     """The MoDi GAN step on ``prepared``'s clips ``train_idx`` (validation on ``val_idx``), models from
-    ``seed``. ``modules`` holds the generator ``g``, its EMA ``g_ema``, the critic ``d`` and the step count;
-    ``optimizers`` are the generator's and the critic's Adam (β₁ = 0, β₂ = 0.99, the critic's adjusted for
-    lazy R1 as in StyleGAN2). ``total`` is the generator's objective."""
+    ``seed``; ``clips`` are their ``clip_features`` when already computed.
+
+    ``modules`` holds the generator ``g``, its EMA ``g_ema``, the critic ``d`` and the step count;
+    ``optimizers`` are the generator's and the critic's Adam (β₁ = 0, β₂ = 0.99, the critic's adjusted
+    for lazy R1 as in StyleGAN2). ``total`` is the generator's objective; ``r1`` the last penalty taken.
+    """
 
     terms = TERMS
 
@@ -109,11 +113,12 @@ class ModiSteps:
         *,
         seed: int = 0,
         device: torch.device | str = "cpu",
+        clips: ClipFeatures | None = None,
     ):
         self.config, self.prepared = config, prepared
         self.train_idx = np.asarray(train_idx, dtype=np.int64)
         self.windows_per_step = config.batch_size
-        self.clips = clip_features(prepared)
+        self.clips = clip_features(prepared) if clips is None else clips
         g = ModiGenerator(config, prepared.skeleton, seed).to(device)
         g.coder.set_statistics(self._raw(g, crop_windows(prepared, self.train_idx, None)))
         d = ModiDiscriminator(config, prepared.skeleton, seed + 1).to(device)
@@ -126,7 +131,6 @@ class ModiSteps:
             torch.optim.Adam(g.parameters(), lr=config.lr, betas=(0.0, 0.99)),
             torch.optim.Adam(d.parameters(), lr=config.lr * lazy, betas=(0.0, 0.99**lazy)),
         )
-        self.last_r1 = 0.0
         val_idx = np.asarray(val_idx, dtype=np.int64)[:MAX_VALIDATION]
         self.val_real = (
             g.coder.normalise(self._raw(g, crop_windows(prepared, val_idx, None))) if len(val_idx) else None
@@ -174,7 +178,7 @@ class ModiSteps:
             opt_d.zero_grad(set_to_none=True)
             (0.5 * config.r1_gamma * config.r1_every * r1).backward()
             opt_d.step()
-            self.last_r1 = float(r1.detach())
+            self.counter.last_r1.copy_(r1.detach())
         _trainable(d, False)
         _trainable(g, True)
         fake = self.fake(generator)
@@ -186,7 +190,7 @@ class ModiSteps:
         opt_g.step()
         self._update_ema()
         self.counter.steps += 1
-        values = (d_loss, self.last_r1, g_adv, touch, fcon, total)
+        values = (d_loss, self.counter.last_r1, g_adv, touch, fcon, total)
         return _floats(values)
 
     @torch.no_grad()

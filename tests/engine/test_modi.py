@@ -17,6 +17,7 @@ from engine.model.modi_losses import contact_losses, r1_penalty
 from engine.model.skeleton_conv import (
     SkeletalConv,
     neighbourhood,
+    plan_blocks,
     pool_skeleton,
     pooling_mask,
     skeleton_hierarchy,
@@ -129,6 +130,28 @@ def test_skeletal_conv_sees_only_its_mask() -> None:
     torch.testing.assert_close(a[:, :5], b[:, :5])
     assert not torch.allclose(a[:, 5:], b[:, 5:])
     assert conv.weight.shape == (3, 5, 4, 3)  # weights only for the three allowed pairs
+
+
+def test_blocked_products_equal_the_dense_convolution() -> None:
+    rng = np.random.default_rng(0)
+    mask = rng.random((14, 11)) < 0.25
+    mask[np.arange(14), rng.integers(0, 11, 14)] = True  # every output sees something
+    conv = SkeletalConv(mask, 3, 2, 3)
+    conv.reset_parameters(torch.Generator().manual_seed(2))
+    with torch.no_grad():
+        conv.bias.normal_()
+    assert 1 < len(conv.blocks) < 14
+    x = torch.randn(4, 33, 9)
+    torch.testing.assert_close(conv(x), F.conv1d(x, conv.dense_weight(), conv.bias, padding=1))
+
+
+def test_blocks_grow_while_one_product_is_cheaper() -> None:
+    diagonal = np.eye(8, dtype=bool)
+    # 2 x 2 (4) beats 1 + 1 + overhead 4; 3 x 3 (9) ties 4 + 1 + 4; 4 x 4 (16) loses to 9 + 1 + 4
+    assert [(a, b) for a, b, _ in plan_blocks(diagonal)] == [(0, 3), (3, 6), (6, 8)]
+    full = np.ones((5, 7), dtype=bool)
+    ((start, stop, inputs),) = plan_blocks(full)
+    assert (start, stop) == (0, 5) and list(inputs) == list(range(7))
 
 
 @pytest.mark.parametrize("resample", ["none", "up", "down"])
