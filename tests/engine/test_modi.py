@@ -24,7 +24,8 @@ from engine.model.skeleton_conv import (
 )
 from engine.motion.datasets import load_folder
 from engine.motion.motion import Motion
-from engine.train.modi_steps import ModiSteps, clip_features, window_features
+from engine.train.epochs import run_epochs, run_identity
+from engine.train.modi_steps import ModiSteps, clip_features, steps_per_epoch, window_features
 from engine.train.windows import crop_windows, prepare_clips
 from tests.fixtures.procedural import procedural_skeleton
 
@@ -382,3 +383,34 @@ def test_feet_by_their_chains_are_the_full_forward_kinematics(
         full = g.coder.joints(x)
     assert g.coder.foot_chain == [0, 7, 8, 9, 10]  # hips, both legs: not the spine or the arms
     torch.testing.assert_close(feet, full[:, :, g.coder.feet])
+
+
+def test_epoch_loop_resumes_exactly(procedural_clips: list[Motion], tmp_path: Path) -> None:
+    skeleton = procedural_clips[0].skeleton
+    config = small_config(skeleton.n_joints, r1_every=3, epoch_size=8, epochs=2)
+    prepared = prepare_clips(procedural_clips, ["walk", "wave", "jump"], config.fps, config.window)
+    identity = run_identity(config, prepared.fingerprint(), 0, 0.1)
+
+    def run(out: Path, epochs: int) -> ModiSteps:
+        steps = ModiSteps(config, prepared, np.arange(60), np.arange(60, 72), seed=0)
+        run_epochs(
+            steps,
+            out,
+            config,
+            identity,
+            epochs=epochs,
+            steps_per_epoch=steps_per_epoch(config),
+            rng=np.random.default_rng(0),
+            generator=torch.Generator().manual_seed(0),
+            resume=True,
+        )
+        return steps
+
+    straight = run(tmp_path / "straight", 2)
+    run(tmp_path / "split", 1)
+    resumed = run(tmp_path / "split", 2)
+    for (name, a), b in zip(
+        straight.modules.state_dict().items(), resumed.modules.state_dict().values(), strict=True
+    ):
+        assert torch.equal(a, b), name
+    assert int(resumed.counter.steps) == 4
