@@ -1,7 +1,7 @@
 """Latent-bank timings: GMM + silhouette mode selection and 2D map fits on synthetic 20-D clustered codes.
 
 Run: ``nice python bench/latent.py [--sizes 1000 3000 10000] [--threads 1]``. For each size N, one action of
-N codes drawn from 6 Gaussian clusters: ``discover_modes`` over K = 3..11, then PCA / t-SNE / UMAP fits, and
+N codes drawn from 6 Gaussian clusters: ``ModeModel.fit`` over K = 3..11, then PCA / t-SNE / UMAP fits, and
 the steady-state per-query cost of the interactive calls (inverse of one map point, placing one new code,
 end location of one code; neighbour lookups are built on the first query and kept). Last, a whole
 ``build_bank`` on the bundled model's codes (every action's modes and the three maps).
@@ -23,7 +23,7 @@ if __package__ in (None, ""):
 
 from bench._report import record
 from engine.latent.bank import LatentBank, build_bank
-from engine.latent.modes import discover_modes
+from engine.latent.modes import ModeModel
 from engine.latent.projection import make_projection
 
 DEFAULT_MODEL = Path(__file__).resolve().parents[1] / "resources" / "models" / "bandai2-odmo"
@@ -87,12 +87,12 @@ def measure(sizes: list[int], dim: int) -> list[dict[str, object]]:
         centers = rng.normal(0.0, 3.0, (6, dim))
         labels = rng.integers(0, len(centers), n)
         codes = (centers[labels] + rng.normal(0.0, 1.0, (n, dim))).astype(np.float32)
-        seconds, modes = _seconds(lambda codes=codes: discover_modes(codes, k_range=(3, 11), seed=0))
+        seconds, modes = _seconds(lambda codes=codes: ModeModel(k_range=(3, 11), seed=0).fit(codes))
         add(
             n,
-            "discover_modes, K = 3..11",
+            "ModeModel.fit, K = 3..11",
             seconds,
-            f"K chosen {modes.k_chosen}, {modes.n_modes} kept (6 planted)",
+            f"K chosen {modes.k_chosen_}, {modes.n_modes_} kept (6 planted)",
         )
         probe = codes[:1] + 0.01
         for name in ("pca", "tsne", "umap"):

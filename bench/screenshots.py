@@ -55,8 +55,8 @@ def _two_modes(explorer: Explorer, action: int) -> tuple[int, int]:
     bank = explorer.controller.bank
     modes = bank.modes[action]
     members = bank.indices_of(action)
-    a, b = np.argsort(modes.weights)[::-1][:2]
-    near = [members[np.argmin(np.linalg.norm(bank.codes[members] - modes.means[m], axis=1))] for m in (a, b)]
+    a, b = np.argsort(modes.weights_)[::-1][:2]
+    near = [members[np.argmin(np.linalg.norm(bank.codes[members] - modes.means_[m], axis=1))] for m in (a, b)]
     return int(near[0]), int(near[1])
 
 

@@ -236,10 +236,10 @@ def interpolation_smoothness(loaded, clips) -> dict[str, dict]:
     for index, name in enumerate(loaded.action_names):
         modes = loaded.bank.modes.get(index)
         real = [resample_motion(c, loaded.fps).joints for c in clips if c.action == name]
-        if modes is None or len(modes.weights) < 2 or not real:
+        if modes is None or len(modes.weights_) < 2 or not real:
             continue
-        a, b = np.argsort(modes.weights)[::-1][:2]
-        strip = interpolate(loaded, modes.means[a], modes.means[b], index, steps=10)
+        a, b = np.argsort(modes.weights_)[::-1][:2]
+        strip = interpolate(loaded, modes.means_[a], modes.means_[b], index, steps=10)
         generated = max_frame_jump(np.stack([s.motion.joints for s in strip]))
         real_jump = max(max_frame_jump(r[None]) for r in real)
         out[name] = {"modes": f"{a}→{b}", "generated": generated, "real": real_jump}

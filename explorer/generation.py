@@ -52,11 +52,11 @@ class Generation:
             self.c.report_error("Cannot fit a local mode", "select at least 3 codes with the lasso")
             return
         from engine import generate
-        from engine.latent.modes import single_gaussian
+        from engine.latent.modes import ModeModel
 
         loaded, bank, with_end = self.c.generator, self.c.bank, self.c.can("end")
         action = int(np.bincount(bank.actions[sel]).argmax())
-        local = single_gaussian(bank.codes[sel])
+        local = ModeModel(k_range=(1, 1)).fit(bank.codes[sel])
         self.c.map.local_mode = (local, sel)
         self.c.map.draw_overlays()
         seed = self.c.new_seed()

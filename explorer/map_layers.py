@@ -28,7 +28,7 @@ def mode_labels(bank: LatentBank) -> np.ndarray:
     """(N,) mode index of every bank code within its action (-1 where the action has no modes)."""
     labels = np.full(len(bank.codes), -1, dtype=np.int64)
     for action, modes in bank.modes.items():
-        labels[bank.indices_of(action)] = np.asarray(modes.labels, dtype=np.int64)
+        labels[bank.indices_of(action)] = np.asarray(modes.labels_, dtype=np.int64)
     return labels
 
 
@@ -159,17 +159,17 @@ def mode_overlays(
         return [], np.zeros((0, 4))
     curves: list[np.ndarray] = []
     if isinstance(projection, PCAProjection):
-        for mean, cov in zip(modes.means, modes.covariances, strict=True):
+        for mean, cov in zip(modes.means_, modes.covariances_, strict=True):
             mean2, cov2 = project_gaussian(mean, cov, projection.components_, projection.mean_)
             curves.append(gaussian_ellipse(mean2, cov2, level=0.5))
     else:
         members = bank.indices_of(action)
-        labels = np.asarray(modes.labels)
-        for k in range(modes.n_modes):
+        labels = np.asarray(modes.labels_)
+        for k in range(modes.n_modes_):
             curve = members_ellipse(embedding[members[labels == k]])
             if curve is not None:
                 curves.append(curve)
-    return curves, category_colors(modes.n_modes)[: len(curves)]
+    return curves, category_colors(modes.n_modes_)[: len(curves)]
 
 
 def members_ellipse(xy: np.ndarray) -> np.ndarray | None:
@@ -206,19 +206,19 @@ def mode_note(modes: Any, n_codes: int, ratio: float = 0.95) -> str:
         if n_codes == 0:
             return "No modes: the bank holds no code of this action (no training clip was labelled with it)."
         return f"No modes: the bank has {n_codes} codes of this action but no mode model for it."
-    scores = {int(k): float(v) for k, v in modes.silhouette.items()}
+    scores = {int(k): float(v) for k, v in modes.silhouette_.items()}
     scored = {k: v for k, v in scores.items() if np.isfinite(v)}
     if not scored:
         span = f"{min(scores)}–{max(scores)}" if scores else "the range searched"
         return f"1 mode (the action's single Gaussian): no K in {span} could be scored on {n_codes} codes."
-    k = int(modes.k_chosen)
+    k = int(modes.k_chosen_)
     best = max(scored, key=scored.get)
     if k == best:
         why = "the best silhouette"
     else:
         why = f"the first K scoring above {ratio:.0%} of K + 1's (a smaller K is preferred)"
     text = f"K = {k} chosen: {why}."
-    if modes.n_modes < k:
-        dropped = k - modes.n_modes
-        text += f" {modes.n_modes} kept; {dropped} dropped for having too few clips."
+    if modes.n_modes_ < k:
+        dropped = k - modes.n_modes_
+        text += f" {modes.n_modes_} kept; {dropped} dropped for having too few clips."
     return text

@@ -166,7 +166,7 @@ class MapPresenter:
         if self.local_mode is not None:
             mode, members = self.local_mode
             curves.append(
-                gaussian_outline(mode.means[0], mode.covariances[0], projection, embedding[members])
+                gaussian_outline(mode.means_[0], mode.covariances_[0], projection, embedding[members])
             )
             colors.append((1.0, 0.8, 0.2, 1.0))
         self.c.window.latent_map.set_overlays(curves, colors)
@@ -195,13 +195,13 @@ class MapPresenter:
         if modes is None:
             w.mode_panel.set_action_modes(name, [], [], 0, [], [], note)
         else:
-            ks = sorted(modes.silhouette)
-            weights = self.weights.get(action, modes.weights / max(float(np.max(modes.weights)), 1e-12))
+            ks = sorted(modes.silhouette_)
+            weights = self.weights.get(action, modes.weights_ / max(float(np.max(modes.weights_)), 1e-12))
             w.mode_panel.set_action_modes(
                 name,
                 ks,
-                [float(modes.silhouette[k]) for k in ks],
-                int(modes.k_chosen),
+                [float(modes.silhouette_[k]) for k in ks],
+                int(modes.k_chosen_),
                 [int(s) for s in modes.sizes()],
                 [float(v) for v in weights],
                 note,

@@ -120,7 +120,7 @@ def follow_path(
     modes = None if bank is None else bank.modes.get(index)
     if modes is None:
         raise ConfigError(f"{loaded.path}: following a path needs the action's modes in the latent bank")
-    k = len(modes.weights)
+    k = len(modes.weights_)
     if mode is not None and not 0 <= mode < k:
         raise ConfigError(f"action {loaded.action_names[index]!r} has modes 0..{k - 1}, got {mode}")
     path = np.asarray(path_xz, dtype=np.float64)
@@ -128,18 +128,18 @@ def follow_path(
     requested = resample_path(path, loaded.window) - path[:1]
     heading = path_heading(path)
     mean, cov = (
-        (modes.conventional_mean, modes.conventional_cov)
+        (modes.conventional_mean_, modes.conventional_cov_)
         if mode is None
-        else (modes.means[mode], modes.covariances[mode])
+        else (modes.means_[mode], modes.covariances_[mode])
     )
     dim = len(mean)
 
     members = bank.indices_of(index)
     if mode is not None:
-        members = members[np.asarray(modes.labels) == mode]
+        members = members[np.asarray(modes.labels_) == mode]
     rng = np.random.default_rng(seed)
     drawn, _ = modes.sample(restarts, rng, strategy="conventional" if mode is None else "mode", mode=mode)
-    means = modes.means if mode is None else modes.means[mode : mode + 1]
+    means = modes.means_ if mode is None else modes.means_[mode : mode + 1]
     candidates = np.concatenate([means, bank.codes[members], drawn]).astype(np.float32)
 
     model = loaded.model

@@ -191,7 +191,7 @@ def interpolate(
     index = action_index(loaded, action)
     a, b = as_codes(loaded, code_a)[0], as_codes(loaded, code_b)[0]
     mode_model = None if loaded.bank is None else loaded.bank.modes.get(index)
-    centre = np.zeros_like(a) if mode_model is None else np.asarray(mode_model.conventional_mean, np.float32)
+    centre = np.zeros_like(a) if mode_model is None else np.asarray(mode_model.conventional_mean_, np.float32)
     codes = interpolation_codes(a, b, steps, method, centre)
     ends_ab = [resolve_ends(loaded, c[None], index, e) for c, e in ((a, end_a), (b, end_b))]
     t = np.linspace(0.0, 1.0, steps, dtype=np.float32)[:, None]

@@ -286,7 +286,7 @@ class A2mGenerator(FolderGenerator):
         a, b = (np.asarray(c, np.float32).reshape(-1) for c in (code_a, code_b))
         bank = self.loaded.bank
         modes = None if bank is None else bank.modes.get(index)
-        centre = np.zeros_like(a) if modes is None else np.asarray(modes.conventional_mean, np.float32)
+        centre = np.zeros_like(a) if modes is None else np.asarray(modes.conventional_mean_, np.float32)
         codes = interpolation_codes(a, b, steps, method, centre)
         joints = decode_a2m(self.loaded, codes, index)
         return self._samples(joints, codes, index, self._modes_of(codes, index), {"interpolation": method})

@@ -15,7 +15,7 @@ import numpy as np
 from engine.errors import CancelledError, ConfigError, ModelFormatError
 from engine.fileio import atomic_write_bytes
 from engine.latent.geometry import NeighbourBlend
-from engine.latent.modes import ModeModel, discover_modes
+from engine.latent.modes import ModeModel
 from engine.latent.projection import Projection, make_projection
 from engine.limits import read_bytes
 from engine.npyio import load_npz
@@ -193,10 +193,10 @@ def _validate(bank: LatentBank, error: type[Exception]) -> None:
     for action, model in bank.modes.items():
         if not 0 <= action < len(bank.action_names):
             raise error(f"modes for unknown action {action}")
-        if len(model.labels) != int(np.sum(bank.actions == action)):
-            raise error(f"modes of action {action} label {len(model.labels)} codes")
-        if model.means.shape[1] != dim:
-            raise error(f"modes of action {action} are {model.means.shape[1]}-d, codes {dim}-d")
+        if len(model.labels_) != int(np.sum(bank.actions == action)):
+            raise error(f"modes of action {action} label {len(model.labels_)} codes")
+        if model.means_.shape[1] != dim:
+            raise error(f"modes of action {action} are {model.means_.shape[1]}-d, codes {dim}-d")
         problem = model.problem()
         if problem is not None:
             raise error(f"modes of action {bank.action_names[action]!r}: {problem}")
@@ -241,7 +241,7 @@ def build_bank(
 
     for action in present:
         step(f"modes of {bank.action_names[action]}")
-        bank.modes[action] = discover_modes(bank.codes[bank.indices_of(action)], k_range=k_range, seed=seed)
+        bank.modes[action] = ModeModel(k_range=k_range, seed=seed).fit(bank.codes[bank.indices_of(action)])
     for name, projection in maps.items():
         step(f"{name} map")
         bank.projections[name] = projection.fit(bank.codes)

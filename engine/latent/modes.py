@@ -4,10 +4,11 @@ from __future__ import annotations
 
 import logging
 import warnings
-from dataclasses import dataclass
+from typing import Self
 
 import numpy as np
 from scipy.stats import multivariate_normal
+from sklearn.base import BaseEstimator
 from sklearn.exceptions import ConvergenceWarning
 from sklearn.metrics import silhouette_score
 from sklearn.mixture import GaussianMixture
@@ -20,37 +21,101 @@ STRATEGIES = ("mode_preserving", "conventional", "mode", "weights")
 REG_COVAR = 1e-6  # added to every covariance diagonal, as sklearn's GaussianMixture does by default
 
 
-@dataclass
-class ModeModel:
-    """One action's modes: a Gaussian mixture over its codes plus the one-Gaussian ("conventional") fit.
+class ModeModel(BaseEstimator):
+    """One action's modes (scikit-learn estimator convention): ``fit`` finds a Gaussian mixture over the
+    action's codes, chosen by silhouette, plus the one-Gaussian ("conventional") fit.
 
-    Attributes
-    ----------
-    weights : (K,) mixture weights, renormalised after dropping small components.
-    means : (K, D); covariances : (K, D, D) full.
-    labels : (N,) mode index of each of the action's training codes.
-    silhouette : every K tried -> silhouette score (nan where undefined or not fitted).
-    k_chosen : the K the selection rule picked, before dropping (1 when no K could be scored).
-    conventional_mean : (D,); conventional_cov : (D, D).
+    Parameters: ``k_range`` (inclusive) of mixture sizes tried, the ``ratio`` of :func:`choose_k`,
+    ``min_members`` a component needs to be kept, the ``seed``, and ``silhouette_sample`` (silhouettes of
+    more codes are estimated on a seeded subsample; None: always exact). ``k_range=(1, 1)`` fits one
+    Gaussian (e.g. a local mode of a selection).
+
+    Fitted attributes
+    -----------------
+    weights_ : (K,) mixture weights, renormalised after dropping small components.
+    means_ : (K, D); covariances_ : (K, D, D) full.
+    labels_ : (N,) mode index of each fitted code.
+    silhouette_ : every K tried -> silhouette score (nan where undefined or not fitted).
+    k_chosen_ : the K the selection rule picked, before dropping (1 when no K could be scored).
+    conventional_mean_ : (D,); conventional_cov_ : (D, D), the maximum-likelihood Gaussian plus
+    ``REG_COVAR`` on the diagonal.
     """
 
-    weights: np.ndarray
-    means: np.ndarray
-    covariances: np.ndarray
-    labels: np.ndarray
-    silhouette: dict[int, float]
-    k_chosen: int
-    conventional_mean: np.ndarray
-    conventional_cov: np.ndarray
+    weights_: np.ndarray
+    means_: np.ndarray
+    covariances_: np.ndarray
+    labels_: np.ndarray
+    silhouette_: dict[int, float]
+    k_chosen_: int
+    conventional_mean_: np.ndarray
+    conventional_cov_: np.ndarray
+
+    def __init__(
+        self,
+        k_range: tuple[int, int] = (3, 11),
+        ratio: float = 0.95,
+        min_members: int = 10,
+        seed: int = 0,
+        silhouette_sample: int | None = 5000,
+    ) -> None:
+        self.k_range = k_range
+        self.ratio = ratio
+        self.min_members = min_members
+        self.seed = seed
+        self.silhouette_sample = silhouette_sample
+
+    def fit(self, codes: np.ndarray) -> Self:
+        """Fit to one action's codes (N, D): a GMM for every K in ``k_range`` scored by silhouette, K
+        picked by :func:`choose_k`, components with fewer than ``min_members`` codes dropped and the
+        weights renormalised. Ks larger than N are recorded as nan. When no K can be scored, or no
+        component keeps enough members, the one mode is the conventional Gaussian."""
+        x = _check_codes(codes)
+        if len(x) == 0:
+            raise ConfigError("cannot fit modes to no codes")
+        k_min, k_max = self.k_range
+        if not 1 <= k_min <= k_max:
+            raise ConfigError(f"k_range must satisfy 1 <= min <= max, got {self.k_range}")
+        if not self.ratio > 0.0:
+            raise ConfigError(f"ratio must be positive, got {self.ratio}")
+        fits: dict[int, GaussianMixture] = {}
+        scores: dict[int, float] = {}
+        for k in range(k_min, k_max + 1):
+            if k == 1 or k > len(x):  # one cluster has no silhouette
+                scores[k] = float("nan")
+                continue
+            fits[k] = _fit_gmm(x, k, self.seed)
+            scores[k] = _silhouette(x, fits[k].predict(x), self.silhouette_sample, self.seed)
+        chosen = choose_k(scores, self.ratio)
+        self.silhouette_, self.k_chosen_ = scores, 1 if chosen is None else chosen
+        self.conventional_mean_ = x.mean(axis=0)
+        dim = x.shape[1]
+        cov = np.cov(x, rowvar=False, bias=True).reshape(dim, dim) + REG_COVAR * np.eye(dim)
+        self.conventional_cov_ = cov
+        keep = np.array([], dtype=np.int64)
+        if chosen is not None:
+            gmm = fits[chosen]
+            keep = np.flatnonzero(np.bincount(gmm.predict(x), minlength=chosen) >= self.min_members)
+        if len(keep) == 0:
+            if k_max > 1:
+                log.info("no usable mixture among K in %s for %d codes: one mode", self.k_range, len(x))
+            self.weights_ = np.ones(1)
+            self.means_, self.covariances_ = self.conventional_mean_[None], cov[None]
+        else:
+            self.weights_ = gmm.weights_[keep] / gmm.weights_[keep].sum()
+            self.means_, self.covariances_ = gmm.means_[keep], gmm.covariances_[keep]
+        self.labels_ = np.zeros(len(x), dtype=np.int64)
+        if self.n_modes_ > 1:
+            self.labels_ = self.predict(x)
+        return self
 
     @property
-    def n_modes(self) -> int:
+    def n_modes_(self) -> int:
         """Number of modes kept."""
-        return len(self.weights)
+        return len(self.weights_)
 
     def sizes(self) -> np.ndarray:
         """(K,) number of training codes assigned to each mode."""
-        return np.bincount(self.labels, minlength=self.n_modes)
+        return np.bincount(self.labels_, minlength=self.n_modes_)
 
     def sample(
         self,
@@ -68,26 +133,27 @@ class ModeModel:
         """
         if n < 0:
             raise ConfigError(f"number of samples must be non-negative, got {n}")
-        dim = self.means.shape[1]
+        dim = self.means_.shape[1]
         if strategy == "conventional":
-            codes = rng.multivariate_normal(self.conventional_mean, self.conventional_cov, size=n)
+            codes = rng.multivariate_normal(self.conventional_mean_, self.conventional_cov_, size=n)
             return codes.reshape(n, dim).astype(np.float32), np.full(n, -1, dtype=np.int64)
         if strategy == "mode_preserving":
-            probs = self.weights
+            probs = self.weights_
         elif strategy == "weights":
             probs = self._user_weights(weights)
         elif strategy == "mode":
-            if mode is None or not 0 <= int(mode) < self.n_modes:
-                raise ConfigError(f"mode must be in 0..{self.n_modes - 1}, got {mode}")
-            probs = np.eye(self.n_modes)[int(mode)]
+            if mode is None or not 0 <= int(mode) < self.n_modes_:
+                raise ConfigError(f"mode must be in 0..{self.n_modes_ - 1}, got {mode}")
+            probs = np.eye(self.n_modes_)[int(mode)]
         else:
             raise ConfigError(f"unknown sampling strategy {strategy!r}; expected one of {STRATEGIES}")
-        modes = rng.choice(self.n_modes, size=n, p=probs).astype(np.int64)
+        modes = rng.choice(self.n_modes_, size=n, p=probs).astype(np.int64)
         codes = np.empty((n, dim), dtype=np.float64)
-        for k in range(self.n_modes):
+        for k in range(self.n_modes_):
             chosen = modes == k
             if chosen.any():
-                codes[chosen] = rng.multivariate_normal(self.means[k], self.covariances[k], size=chosen.sum())
+                mean, cov = self.means_[k], self.covariances_[k]
+                codes[chosen] = rng.multivariate_normal(mean, cov, size=chosen.sum())
         return codes.astype(np.float32), modes
 
     def _user_weights(self, weights: np.ndarray | None) -> np.ndarray:
@@ -95,8 +161,8 @@ class ModeModel:
         if weights is None:
             raise ConfigError('strategy "weights" needs weights')
         w = np.asarray(weights, dtype=np.float64)
-        if w.shape != (self.n_modes,):
-            raise ConfigError(f"need {self.n_modes} weights, got shape {w.shape}")
+        if w.shape != (self.n_modes_,):
+            raise ConfigError(f"need {self.n_modes_} weights, got shape {w.shape}")
         if not np.all(np.isfinite(w)) or np.any(w < 0):
             raise ConfigError("weights must be finite and non-negative")
         if w.sum() <= 0:
@@ -105,11 +171,11 @@ class ModeModel:
 
     def log_responsibilities(self, codes: np.ndarray) -> np.ndarray:
         """(M, K) log of weight × density of each code under each mode (unnormalised)."""
-        x = _check_codes(codes, self.means.shape[1])
+        x = _check_codes(codes, self.means_.shape[1])
         return np.stack(
             [
                 np.log(w) + multivariate_normal(mean, cov).logpdf(x).reshape(len(x))
-                for w, mean, cov in zip(self.weights, self.means, self.covariances, strict=True)
+                for w, mean, cov in zip(self.weights_, self.means_, self.covariances_, strict=True)
             ],
             axis=1,
         )
@@ -121,13 +187,13 @@ class ModeModel:
     def problem(self) -> str | None:
         """What makes these modes unusable for sampling (non-finite or negative weights, covariances that
         are not symmetric positive definite), or None."""
-        w = np.asarray(self.weights, dtype=np.float64)
+        w = np.asarray(self.weights_, dtype=np.float64)
         if not np.all(np.isfinite(w)) or np.any(w < 0) or abs(w.sum() - 1.0) > 1e-3:
             return f"mixture weights must be finite, non-negative and sum to 1, got {w.tolist()}"
-        for name in ("means", "conventional_mean"):
+        for name in ("means_", "conventional_mean_"):
             if not np.all(np.isfinite(getattr(self, name))) or np.abs(getattr(self, name)).max() > 1e6:
                 return f"{name} must be finite numbers of sensible size (|x| <= 1e6)"
-        pairs = (("covariances", self.covariances), ("conventional_cov", self.conventional_cov[None]))
+        pairs = (("covariances_", self.covariances_), ("conventional_cov_", self.conventional_cov_[None]))
         for name, covs in pairs:
             c = np.asarray(covs, dtype=np.float64)
             if not np.all(np.isfinite(c)) or not np.allclose(c, np.swapaxes(c, 1, 2), atol=1e-6, rtol=1e-4):
@@ -138,51 +204,46 @@ class ModeModel:
 
     def to_arrays(self, prefix: str) -> dict[str, np.ndarray]:
         """Plain arrays (no objects) under keys starting with ``prefix``."""
-        ks = sorted(self.silhouette)
+        ks = sorted(self.silhouette_)
         return {
-            f"{prefix}weights": self.weights,
-            f"{prefix}means": self.means,
-            f"{prefix}covariances": self.covariances,
-            f"{prefix}labels": self.labels,
+            f"{prefix}weights": self.weights_,
+            f"{prefix}means": self.means_,
+            f"{prefix}covariances": self.covariances_,
+            f"{prefix}labels": self.labels_,
             f"{prefix}silhouette_k": np.asarray(ks, dtype=np.int64),
-            f"{prefix}silhouette_score": np.asarray([self.silhouette[k] for k in ks], dtype=np.float64),
-            f"{prefix}k_chosen": np.asarray(self.k_chosen, dtype=np.int64),
-            f"{prefix}conventional_mean": self.conventional_mean,
-            f"{prefix}conventional_cov": self.conventional_cov,
+            f"{prefix}silhouette_score": np.asarray([self.silhouette_[k] for k in ks], dtype=np.float64),
+            f"{prefix}k_chosen": np.asarray(self.k_chosen_, dtype=np.int64),
+            f"{prefix}conventional_mean": self.conventional_mean_,
+            f"{prefix}conventional_cov": self.conventional_cov_,
         }
 
     @classmethod
     def from_arrays(cls, prefix: str, arrays: dict[str, np.ndarray]) -> ModeModel:
         """Rebuild from :meth:`to_arrays` output; ModelFormatError for missing keys or bad shapes."""
+        model = cls()
         try:
-            model = cls(
-                weights=arrays[f"{prefix}weights"],
-                means=arrays[f"{prefix}means"],
-                covariances=arrays[f"{prefix}covariances"],
-                labels=arrays[f"{prefix}labels"],
-                silhouette={
-                    int(k): float(s)
-                    for k, s in zip(
-                        arrays[f"{prefix}silhouette_k"], arrays[f"{prefix}silhouette_score"], strict=True
-                    )
-                },
-                k_chosen=int(arrays[f"{prefix}k_chosen"]),
-                conventional_mean=arrays[f"{prefix}conventional_mean"],
-                conventional_cov=arrays[f"{prefix}conventional_cov"],
-            )
+            model.weights_ = arrays[f"{prefix}weights"]
+            model.means_ = arrays[f"{prefix}means"]
+            model.covariances_ = arrays[f"{prefix}covariances"]
+            model.labels_ = arrays[f"{prefix}labels"]
+            scores = zip(arrays[f"{prefix}silhouette_k"], arrays[f"{prefix}silhouette_score"], strict=True)
+            model.silhouette_ = {int(k): float(s) for k, s in scores}
+            model.k_chosen_ = int(arrays[f"{prefix}k_chosen"])
+            model.conventional_mean_ = arrays[f"{prefix}conventional_mean"]
+            model.conventional_cov_ = arrays[f"{prefix}conventional_cov"]
         except KeyError as exc:
             raise ModelFormatError(f"mode model is missing {exc.args[0]!r}") from exc
         except (TypeError, ValueError) as exc:
             raise ModelFormatError(f"mode model {prefix!r} is malformed: {exc}") from exc
-        k, d = model.means.shape if model.means.ndim == 2 else (-1, -1)
+        k, d = model.means_.shape if model.means_.ndim == 2 else (-1, -1)
         if (
             k < 1
-            or model.weights.shape != (k,)
-            or model.covariances.shape != (k, d, d)
-            or model.conventional_mean.shape != (d,)
-            or model.conventional_cov.shape != (d, d)
-            or model.labels.ndim != 1
-            or (len(model.labels) and (model.labels.min() < 0 or model.labels.max() >= k))
+            or model.weights_.shape != (k,)
+            or model.covariances_.shape != (k, d, d)
+            or model.conventional_mean_.shape != (d,)
+            or model.conventional_cov_.shape != (d, d)
+            or model.labels_.ndim != 1
+            or (len(model.labels_) and (model.labels_.min() < 0 or model.labels_.max() >= k))
         ):
             raise ModelFormatError(f"mode model {prefix!r} has inconsistent shapes")
         return model
@@ -226,84 +287,3 @@ def _fit_gmm(x: np.ndarray, k: int, seed: int) -> GaussianMixture:
     for warning in caught:
         log.warning("GMM with K=%d: %s", k, warning.message)
     return gmm
-
-
-def single_gaussian(
-    codes: np.ndarray, silhouette: dict[int, float] | None = None, k_chosen: int = 1
-) -> ModeModel:
-    """One mode: the Gaussian (maximum-likelihood mean and covariance, ``REG_COVAR`` on the diagonal) of
-    codes (N, D), e.g. a local mode fitted to a selection."""
-    x = _check_codes(codes)
-    if len(x) == 0:
-        raise ConfigError("cannot fit a Gaussian to no codes")
-    mean = x.mean(axis=0)
-    cov = np.cov(x, rowvar=False, bias=True).reshape(x.shape[1], x.shape[1]) + REG_COVAR * np.eye(x.shape[1])
-    return ModeModel(
-        weights=np.ones(1),
-        means=mean[None],
-        covariances=cov[None],
-        labels=np.zeros(len(x), dtype=np.int64),
-        silhouette={} if silhouette is None else silhouette,
-        k_chosen=k_chosen,
-        conventional_mean=mean,
-        conventional_cov=cov,
-    )
-
-
-def discover_modes(
-    codes: np.ndarray,
-    k_range: tuple[int, int] = (3, 11),
-    ratio: float = 0.95,
-    min_members: int = 10,
-    seed: int = 0,
-    silhouette_sample: int | None = 5000,
-) -> ModeModel:
-    """Find one action's modes in its codes (N, D).
-
-    Fits a GMM for every K in ``k_range`` (inclusive) and scores it by silhouette, picks K with
-    :func:`choose_k`, drops components with fewer than ``min_members`` codes and renormalises the weights.
-    Ks larger than N are recorded as nan. When no K can be scored, or no component keeps enough members,
-    the model has one mode equal to the conventional Gaussian. Silhouettes of more than
-    ``silhouette_sample`` codes are estimated on a seeded subsample (None: always exact).
-    """
-    x = _check_codes(codes)
-    if len(x) == 0:
-        raise ConfigError("cannot discover modes of an action with no codes")
-    k_min, k_max = k_range
-    if not 1 <= k_min <= k_max:
-        raise ConfigError(f"k_range must satisfy 1 <= min <= max, got {k_range}")
-    if not ratio > 0.0:
-        raise ConfigError(f"ratio must be positive, got {ratio}")
-    fits: dict[int, GaussianMixture] = {}
-    scores: dict[int, float] = {}
-    for k in range(k_min, k_max + 1):
-        if k > len(x):
-            scores[k] = float("nan")
-            continue
-        fits[k] = _fit_gmm(x, k, seed)
-        scores[k] = _silhouette(x, fits[k].predict(x), silhouette_sample, seed)
-    chosen = choose_k(scores, ratio)
-
-    single = single_gaussian(x, scores, 1 if chosen is None else chosen)
-    conv_mean, conv_cov = single.conventional_mean, single.conventional_cov
-    if chosen is None:
-        log.info("no K in %s could be scored for %d codes: one mode", k_range, len(x))
-        return single
-    gmm = fits[chosen]
-    counts = np.bincount(gmm.predict(x), minlength=chosen)
-    keep = np.flatnonzero(counts >= min_members)
-    if len(keep) == 0:
-        log.info("no mode of K=%d has %d members: one mode", chosen, min_members)
-        return single
-    model = ModeModel(
-        weights=gmm.weights_[keep] / gmm.weights_[keep].sum(),
-        means=gmm.means_[keep],
-        covariances=gmm.covariances_[keep],
-        labels=np.zeros(len(x), dtype=np.int64),
-        silhouette=scores,
-        k_chosen=chosen,
-        conventional_mean=conv_mean,
-        conventional_cov=conv_cov,
-    )
-    model.labels = model.predict(x)
-    return model

@@ -60,8 +60,8 @@ def saved(bank: LatentBank, tmp_path_factory: pytest.TempPathFactory) -> Path:
 def test_build_finds_modes_and_maps(bank: LatentBank) -> None:
     assert sorted(bank.modes) == [0, 1, 2]  # "unused" has no codes and no modes
     for action, model in bank.modes.items():
-        assert model.k_chosen == 2 and model.n_modes == 2
-        assert len(model.labels) == len(bank.indices_of(action)) == 60
+        assert model.k_chosen_ == 2 and model.n_modes_ == 2
+        assert len(model.labels_) == len(bank.indices_of(action)) == 60
         assert sorted(model.sizes()) == [30, 30]
     assert sorted(bank.projections) == ["pca", "tsne", "umap"]
     for projection in bank.projections.values():
@@ -77,9 +77,9 @@ def test_save_load_round_trip_is_exact(bank: LatentBank, saved: Path) -> None:
     assert back.action_names == bank.action_names and back.meta == bank.meta
     assert sorted(back.modes) == sorted(bank.modes)
     for action, model in bank.modes.items():
-        np.testing.assert_array_equal(back.modes[action].means, model.means)
-        np.testing.assert_array_equal(back.modes[action].labels, model.labels)
-        assert back.modes[action].silhouette == model.silhouette
+        np.testing.assert_array_equal(back.modes[action].means_, model.means_)
+        np.testing.assert_array_equal(back.modes[action].labels_, model.labels_)
+        assert back.modes[action].silhouette_ == model.silhouette_
     points = np.random.default_rng(0).normal(size=(5, 2))
     for name, projection in bank.projections.items():
         np.testing.assert_array_equal(back.projections[name].embedding_, projection.embedding_)

@@ -98,7 +98,7 @@ def test_interpolate_from_a_mode_to_a_bank_code(odmo, tiny_model_dir, tmp_path):
     assert len(files) == 4
     first, last = read_motion(files[0]), read_motion(files[-1])
     np.testing.assert_allclose(
-        first.joints, decode(loaded, loaded.bank.modes[walk].means[0], walk).joints, atol=1e-6
+        first.joints, decode(loaded, loaded.bank.modes[walk].means_[0], walk).joints, atol=1e-6
     )
     np.testing.assert_allclose(last.joints, decode(loaded, loaded.bank.codes[i], walk).joints, atol=1e-6)
 

@@ -16,7 +16,7 @@ from engine.generate import (
     step_actions,
     window_starts,
 )
-from engine.latent.modes import single_gaussian
+from engine.latent.modes import ModeModel
 from engine.latent.neighbours import nearest, selection_summary, spread_subset
 from engine.modelio import LoadedModel, load_model
 from engine.motion.motion import Motion
@@ -146,12 +146,12 @@ def test_selection_summary_is_centroid_majority_and_mean_distance(loaded) -> Non
         selection_summary(bank, [])
 
 
-def test_single_gaussian_is_the_maximum_likelihood_fit() -> None:
+def test_a_one_gaussian_mode_model_is_the_maximum_likelihood_fit() -> None:
     codes = np.random.default_rng(0).normal([1.0, -2.0], [0.5, 2.0], size=(4000, 2))
-    mode = single_gaussian(codes)
-    assert mode.n_modes == 1 and mode.sizes().tolist() == [4000]
-    np.testing.assert_allclose(mode.means[0], [1.0, -2.0], atol=0.1)
-    np.testing.assert_allclose(np.sqrt(np.diag(mode.covariances[0])), [0.5, 2.0], rtol=0.05)
-    np.testing.assert_allclose(mode.covariances[0], np.cov(codes.T, bias=True) + 1e-6 * np.eye(2), rtol=1e-9)
+    mode = ModeModel(k_range=(1, 1)).fit(codes)
+    assert mode.n_modes_ == 1 and mode.sizes().tolist() == [4000]
+    np.testing.assert_allclose(mode.means_[0], [1.0, -2.0], atol=0.1)
+    np.testing.assert_allclose(np.sqrt(np.diag(mode.covariances_[0])), [0.5, 2.0], rtol=0.05)
+    np.testing.assert_allclose(mode.covariances_[0], np.cov(codes.T, bias=True) + 1e-6 * np.eye(2), rtol=1e-9)
     drawn, labels = mode.sample(5, np.random.default_rng(1), strategy="mode", mode=0)
     assert drawn.shape == (5, 2) and set(labels.tolist()) == {0}

@@ -61,8 +61,8 @@ def test_a_held_out_path_improves_with_optimisation(loaded):
     result = follow_path(loaded, path, action, mode=0, steps=80, seed=1)
     assert result.path_error_m < result.initial_error_m
     np.testing.assert_allclose(result.end[[0, 2]], path[-1], atol=1e-6)
-    d = result.code - loaded.bank.modes[action].means[0]
-    maha = d @ np.linalg.solve(loaded.bank.modes[action].covariances[0], d)
+    d = result.code - loaded.bank.modes[action].means_[0]
+    maha = d @ np.linalg.solve(loaded.bank.modes[action].covariances_[0], d)
     assert maha < 4 * loaded.config.latent_dim
 
 

@@ -31,11 +31,11 @@ def test_mode_panel_explains_the_chosen_k(explorer: Opened) -> None:
         w.action_combo.setCurrentIndex(action)
         modes = c.bank.modes[action]
         note = w.mode_panel.note.text()
-        assert f"K = {modes.k_chosen} chosen" in note or "could be scored" in note
-        assert f"{modes.n_modes} mode" in w.mode_panel.title.text()
+        assert f"K = {modes.k_chosen_} chosen" in note or "could be scored" in note
+        assert f"{modes.n_modes_} mode" in w.mode_panel.title.text()
         starred = w.mode_panel._chosen.data["x"].tolist()
-        assert starred in ([modes.k_chosen], [])
-        if modes.n_modes < modes.k_chosen:
+        assert starred in ([modes.k_chosen_], [])
+        if modes.n_modes_ < modes.k_chosen_:
             assert "dropped" in note
         assert not w.mode_panel.slider(0).isEnabled()  # the default strategy does not use the sliders
 

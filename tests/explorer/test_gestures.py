@@ -121,8 +121,8 @@ def test_mode_panel_shows_the_banks_chosen_k(explorer: Opened) -> None:
         window.action_combo.setCurrentIndex(action)
         modes: ModeModel = c.bank.modes[action]
         assert c.state.focus_action == action
-        assert len(window.mode_panel.weights()) == modes.n_modes
-        k = modes.k_chosen if modes.n_modes == modes.k_chosen else modes.n_modes
+        assert len(window.mode_panel.weights()) == modes.n_modes_
+        k = modes.k_chosen_ if modes.n_modes_ == modes.k_chosen_ else modes.n_modes_
         assert f"{k} mode" in window.mode_panel.title.text()
         assert c.bank.action_names[action] in window.mode_panel.title.text()
 
