@@ -105,13 +105,17 @@ def decode_tensors(
 ) -> tuple[np.ndarray, np.ndarray]:
     """Joints (B, T, J, 3) and root trajectory (B, T, 3) at display height of codes ``z`` (B, D) on the
     model's device: on the skeleton's bone lengths (``bone_projection``) with planted feet pinned
-    (``foot_contact``), which is what the app shows and every export writes."""
+    (``foot_contact``), which is what the app shows and every export writes; the trajectory moves with
+    the joints' root when the clean-up lowers a clip onto the floor."""
     with torch.inference_mode():
         out = ready_model(loaded).decode_full(z, actions, ends)
     lift = display_lift(loaded)
     contact = None if out.contact is None else out.contact.cpu().numpy()
-    joints = plant(loaded, out.joints.cpu().numpy() + lift, contact)
-    return joints, out.trajectory.cpu().numpy() + lift
+    raw = out.joints.cpu().numpy() + lift
+    joints = plant(loaded, raw, contact)
+    root = loaded.skeleton.root
+    moved = joints[:, :, root] - raw[:, :, root]  # the clean-up lowers a floating clip rigidly, root too
+    return joints, out.trajectory.cpu().numpy() + lift + moved
 
 
 def decode_array(

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from engine import cli
-from engine.generate import sample
+from engine.generate import decode_array, sample
 from engine.metrics.classifier import load_classifier
 from engine.metrics.features import canonical_windows
 from engine.modelio import load_model
@@ -40,7 +40,7 @@ def test_bank_covers_every_action_with_modes_and_maps(bundled) -> None:
     assert len(bundled.action_names) == 10
     assert sorted(bank.modes) == list(range(10))
     for modes in bank.modes.values():
-        assert len(modes.weights) >= 1 and np.isclose(np.sum(modes.weights), 1.0)
+        assert len(modes.weights_) >= 1 and np.isclose(np.sum(modes.weights_), 1.0)
     assert {"pca", "tsne", "umap"} <= set(bank.projections)
     assert bank.codes.shape == (len(bank.actions), bundled.config.latent_dim)
 
@@ -103,3 +103,11 @@ def test_bundled_motion_keeps_its_bones_and_exports_as_shown(bundled, tmp_path, 
     from_bvh, direct = read_motion(tmp_path / "y.npz").joints, read_motion(tmp_path / "x.npz").joints
     assert np.linalg.norm(from_bvh - direct, axis=-1).max() < 1e-3
     assert "per action" in (BUNDLED / "MODEL_CARD.md").read_text().lower()
+
+
+def test_the_decoded_trajectory_is_the_shown_root_also_where_the_clean_up_lowered_the_clip(bundled) -> None:
+    bank = bundled.bank
+    joints, trajectory = decode_array(bundled, bank.codes[:200], bank.actions[:200], bank.ends[:200])
+    lowered = bundled.root_height - trajectory[:, 0, 1]
+    assert np.sum(lowered > 1e-4) >= 10  # some decodes float and are lowered onto the floor
+    np.testing.assert_allclose(joints[:, :, bundled.skeleton.root], trajectory, atol=1e-5)
