@@ -213,9 +213,11 @@ class SkeletalConv(nn.Module):
         self.blocks = []
         for start, stop, inputs in plan_blocks(mask):
             rows = np.flatnonzero((pairs[:, 0] >= start) & (pairs[:, 0] < stop))
-            local = (pairs[rows, 0] - start, np.searchsorted(inputs, pairs[rows, 1]))
-            whole = len(inputs) == self.e_in
-            self.blocks.append((start, stop, None if whole else torch.as_tensor(inputs), rows, local))
+            local = np.stack([pairs[rows, 0] - start, np.searchsorted(inputs, pairs[rows, 1])])
+            gather = None if len(inputs) == self.e_in else torch.as_tensor(inputs)
+            full = len(rows) == (stop - start) * len(inputs)  # rows run output-major, inputs ascending
+            place = None if full else torch.as_tensor(local)
+            self.blocks.append((start, stop, len(inputs), gather, torch.as_tensor(rows), place))
 
     def dense_weight(self) -> Tensor:
         """(E_out·C_out, E_in·C_in, U) scaled weights, zero outside the mask."""
@@ -224,10 +226,15 @@ class SkeletalConv(nn.Module):
         dense = dense.permute(0, 2, 1, 3, 4).reshape(self.e_out * self.c_out, self.e_in * self.c_in, -1)
         return dense * self.scale[:, None, None]
 
-    def _block_weight(self, start: int, stop: int, n_in: int, rows: np.ndarray, local: tuple) -> Tensor:
-        """(n_out·C_out, n_in·C_in·U) scaled weights of one block."""
-        block = self.weight.new_zeros(stop - start, n_in, self.c_out, self.c_in, self.kernel)
-        block = block.index_put((torch.as_tensor(local[0]), torch.as_tensor(local[1])), self.weight[rows])
+    def _block_weight(self, start: int, stop: int, n_in: int, rows: Tensor, place: Tensor | None) -> Tensor:
+        """(n_out·C_out, n_in·C_in·U) scaled weights of one block (``place``: where its pairs go, None when
+        the block holds every pair)."""
+        weight = self.weight[rows]
+        if place is None:
+            block = weight.view(stop - start, n_in, self.c_out, self.c_in, self.kernel)
+        else:
+            block = weight.new_zeros(stop - start, n_in, self.c_out, self.c_in, self.kernel)
+            block = block.index_put((place[0], place[1]), weight)
         block = block.permute(0, 2, 1, 3, 4).reshape((stop - start) * self.c_out, -1)
         return block * self.scale[start * self.c_out : stop * self.c_out, None]
 
@@ -241,9 +248,9 @@ class SkeletalConv(nn.Module):
         pad = self.kernel // 2
         frames = F.pad(x, (pad, pad)).unfold(2, self.kernel, 1).transpose(1, 2).reshape(b * t, self.e_in, -1)
         parts = []
-        for start, stop, inputs, rows, local in self.blocks:
-            seen = frames if inputs is None else frames.index_select(1, inputs)
-            weight = self._block_weight(start, stop, seen.shape[1], rows, local)
+        for start, stop, n_in, gather, rows, place in self.blocks:
+            seen = frames if gather is None else frames.index_select(1, gather)
+            weight = self._block_weight(start, stop, n_in, rows, place)
             parts.append(seen.flatten(1) @ weight.T)
         out = torch.cat(parts, 1).view(b, t, -1).transpose(1, 2)
         if style is not None and self.demodulate:
