@@ -9,6 +9,9 @@ is the same tree walked from local rotation matrices, for rotation-based generat
 
 from __future__ import annotations
 
+import functools
+import itertools
+
 import numpy as np
 import torch
 from torch import Tensor, nn
@@ -116,14 +119,35 @@ def rotation_6d_to_matrix(d6: Tensor) -> Tensor:
 
 def forward_kinematics(local: Tensor, offsets: Tensor, parents: np.ndarray, root: Tensor) -> Tensor:
     """(..., J, 3) positions from local rotation matrices (..., J, 3, 3), rest ``offsets`` (J, 3) and root
-    positions (..., 3); ``parents`` precede children, the root's is -1."""
-    world: list[Tensor] = []
-    pos: list[Tensor] = []
-    for j, p in enumerate(np.asarray(parents)):
-        if p < 0:
-            world.append(local[..., j, :, :])
-            pos.append(root)
-        else:
-            world.append(world[p] @ local[..., j, :, :])
-            pos.append(pos[p] + (world[p] @ offsets[j].to(local).unsqueeze(-1)).squeeze(-1))
-    return torch.stack(pos, dim=-2)
+    positions (..., 3); ``parents`` precede children, the root's is -1.
+
+    The tree is walked a depth at a time (every joint of one depth in one batched product), so the number
+    of tensor operations grows with the skeleton's depth, not its joint count.
+    """
+    depths, back = _depth_order(tuple(int(p) for p in np.asarray(parents)))
+    offsets = offsets.to(local)
+    world = [local[..., depths[0], :, :]]
+    pos = [root.unsqueeze(-2).expand(*root.shape[:-1], len(depths[0]), 3)]
+    for joints, slot in depths[1:]:
+        above = world[-1][..., slot, :, :]
+        world.append(above @ local[..., joints, :, :])
+        pos.append(pos[-1][..., slot, :] + (above @ offsets[joints].unsqueeze(-1)).squeeze(-1))
+    return torch.cat(pos, dim=-2)[..., back, :]
+
+
+@functools.cache
+def _depth_order(parents: tuple[int, ...]) -> tuple[list, list[int]]:
+    """The joints grouped by depth, [roots, (joints, index of each one's parent in the depth above), …]
+    (every root is placed at the root position), and the index that puts the depth-ordered joints back
+    in ``parents`` order."""
+    depth: list[int] = []
+    for j, p in enumerate(parents):
+        if p >= j:
+            raise ValueError(f"parents must precede their children; joint {j} has parent {p}")
+        depth.append(0 if p < 0 else depth[p] + 1)
+    levels = [[j for j in range(len(parents)) if depth[j] == d] for d in range(max(depth, default=-1) + 1)]
+    groups: list = [levels[0]]
+    for above, joints in itertools.pairwise(levels):
+        groups.append((joints, [above.index(parents[j]) for j in joints]))
+    order = [j for level in levels for j in level]
+    return groups, [order.index(j) for j in range(len(parents))]

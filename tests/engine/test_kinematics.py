@@ -83,3 +83,41 @@ def test_6d_rotations_are_the_first_two_matrix_columns(seed: int) -> None:
     matrices = Rotation.random(8, random_state=seed).as_matrix()
     d6 = torch.tensor(np.concatenate([matrices[..., 0], matrices[..., 1]], axis=-1) * 3.0)
     np.testing.assert_allclose(rotation_6d_to_matrix(d6).numpy(), matrices, atol=1e-10)
+
+
+def _fk_one_joint_at_a_time(local: torch.Tensor, offsets: torch.Tensor, parents, root: torch.Tensor):
+    """The textbook walk, joint by joint, as an independent reference."""
+    world, pos = [], []
+    for j, p in enumerate(parents):
+        if p < 0:
+            world.append(local[..., j, :, :])
+            pos.append(root)
+        else:
+            world.append(world[p] @ local[..., j, :, :])
+            pos.append(pos[p] + world[p] @ offsets[j])
+    return torch.stack(pos, dim=-2)
+
+
+def test_forward_kinematics_by_depth_has_the_joint_by_joint_values_and_gradients() -> None:
+    skeleton = procedural_skeleton()
+    rng = np.random.default_rng(8)
+    matrices = Rotation.random(3 * 7 * 11, random_state=rng).as_matrix().reshape(3, 7, 11, 3, 3)
+    root_path = rng.normal(size=(3, 7, 3))
+    offsets = torch.tensor(skeleton.offsets)
+    grads = []
+    for fk in (forward_kinematics, _fk_one_joint_at_a_time):
+        local = torch.tensor(matrices, requires_grad=True)
+        root = torch.tensor(root_path, requires_grad=True)
+        out = fk(local, offsets, skeleton.parents, root)
+        (out * torch.linspace(-1, 1, out.numel()).reshape(out.shape)).sum().backward()
+        grads.append((out.detach(), local.grad, root.grad))
+    for got, want in zip(grads[0], grads[1], strict=True):
+        np.testing.assert_allclose(got.numpy(), want.numpy(), atol=1e-12)
+
+
+def test_forward_kinematics_places_every_root_at_the_root_position() -> None:
+    parents = np.array([-1, 0, -1, 2])  # two chains
+    offsets = torch.tensor([[0.0, 0, 0], [1, 0, 0], [0, 0, 0], [0, 2, 0]])
+    local = torch.eye(3).expand(4, 3, 3)
+    got = forward_kinematics(local, offsets, parents, torch.tensor([5.0, 0, 0]))
+    np.testing.assert_allclose(got.numpy(), [[5, 0, 0], [6, 0, 0], [5, 0, 0], [5, 2, 0]])
