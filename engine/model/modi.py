@@ -20,7 +20,14 @@ from torch import Tensor, nn
 from engine.errors import ConfigError
 from engine.model.config_base import ModelConfig
 from engine.model.modi_motion import FEATURES, MotionCoder
-from engine.model.skeleton_conv import SkeletalConv, lrelu, neighbourhood, pooling_mask, skeleton_hierarchy
+from engine.model.skeleton_conv import (
+    SkeletalConv,
+    SkeletonLevel,
+    lrelu,
+    neighbourhood,
+    pooling_mask,
+    skeleton_hierarchy,
+)
 from engine.motion.contact import foot_joints
 from engine.motion.skeleton import Skeleton
 
@@ -137,7 +144,7 @@ class _StyledConv(nn.Module):
         return lrelu(out) if self.activate else out
 
 
-def _hierarchy(config: ModiConfig, skeleton: Skeleton) -> list:
+def _hierarchy(config: ModiConfig, skeleton: Skeleton) -> list[SkeletonLevel]:
     """The pooled skeletons of ``skeleton``, coarsest first."""
     if skeleton.n_joints != config.n_joints:
         raise ConfigError(f"config has {config.n_joints} joints, the skeleton {skeleton.n_joints}")
@@ -271,7 +278,9 @@ class ModiGenerator(nn.Module):
         b, _, t = skip.shape
         return skip.reshape(b, -1, FEATURES, t) * self.coder.feature_mask[:, :, None]
 
-    def forward(self, z: Tensor, psi: float = 1.0, noise: str = "const", generator=None) -> Tensor:
+    def forward(
+        self, z: Tensor, psi: float = 1.0, noise: str = "const", generator: torch.Generator | None = None
+    ) -> Tensor:
         """Normalised motion features (B, E, K, T) of z (B, w_dim) with truncation ``psi``."""
         return self.synthesize(self.truncate(self.map(z), psi), noise, generator)
 

@@ -75,8 +75,11 @@ def window_features(
     rotations[:, :, r] = np.einsum("bij,btjk->btik", turn, rotations[:, :, r])
     root = np.einsum("bij,btj->bti", turn, root - batch.origin[:, None, :])
     device = generator.w_avg.device
-    as_tensor = lambda a: torch.as_tensor(np.ascontiguousarray(a, np.float32), device=device)  # noqa: E731
-    return as_tensor(rotations), as_tensor(root), as_tensor(contacts)
+    rotations, root, contacts = (
+        torch.as_tensor(np.ascontiguousarray(a, np.float32), device=device)
+        for a in (rotations, root, contacts)
+    )
+    return rotations, root, contacts
 
 
 class _Counter(nn.Module):
