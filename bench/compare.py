@@ -42,7 +42,8 @@ from engine.modelio import META_FILE, LoadedModel, load_model
 from engine.motion.datasets import load_folder
 from engine.motion.motion import Motion
 from engine.train.a2m_loop import train_a2m
-from engine.train.loop import TrainProgress, train
+from engine.train.epochs import TrainProgress
+from engine.train.loop import train
 from engine.train.windows import prepare_clips
 
 log = logging.getLogger("bench.compare")
@@ -63,7 +64,13 @@ ROWS = {
     "odmo_push_bf16": "ODMO, contrastive push only, trained under bfloat16 autocast",
     "odmo_default": "ODMO, the bundled default model (its own budget and settings)",
     "odmo_previous": "ODMO, a given earlier model folder (--previous)",
-    "a2m": "Action2Motion (joint positions)",
+    "a2m": "Action2Motion (so(3) poses through FK, the bundled bandai2-a2m's settings)",
+    "a2m_no_lie": "Action2Motion w/o Lie (joint positions)",
+}
+#: The A2M rows: the bundled model's settings (bench/train_a2m.py), with and without the Lie poses.
+A2M_VARIANTS: dict[str, dict[str, Any]] = {
+    "a2m": {"pose_rep": "lie", "lr": 1e-3},
+    "a2m_no_lie": {"pose_rep": "joints", "lr": 1e-3},
 }
 # The comparison rows keep the model they had before issue 18 (no bone projection, contact head, velocity
 # loss, free-running samples or free-running loss terms); the bundled default row has them.
@@ -350,10 +357,10 @@ def _shown_argv(argv: Sequence[str]) -> list[str]:
 
 
 def _fresh_eval(
-    saved: Path, folder: Path, classifier: Classifier, evaluation: dict[str, Any], strategy: str
+    saved: Path, folder: Path, classifier: Classifier, evaluation: dict[str, Any], strategy: str | None
 ) -> bool:
     """Whether ``saved`` evaluated the model now in ``folder`` (written after its weights) with this
-    classifier (same held-out accuracy), evaluation settings and strategy."""
+    classifier (same held-out accuracy), evaluation settings and strategy (None: a kind without one)."""
     weights = Path(folder) / "model.safetensors"
     if not saved.is_file() or not weights.is_file() or saved.stat().st_mtime < weights.stat().st_mtime:
         return False
@@ -419,18 +426,21 @@ def main(argv: Sequence[str] | None = None) -> int:
         labels[key] = args.previous_label[i] if i < len(args.previous_label) else ROWS["odmo_previous"]
         notes[key] = f"evaluated as it is ({shown(args.previous[i], 'PREVIOUS')})"
     a2m_config = A2mConfig(n_actions=len(names), n_joints=skeleton.n_joints, epochs=args.epochs)
-    if "a2m" in wanted:
-        folders["a2m"] = args.runs / "a2m"
-        if args.reuse and _finished(folders["a2m"], args.epochs):
-            notes["a2m"] = f"reused {shown(folders['a2m'], 'RUNS/a2m')}"
+    for key, changes in A2M_VARIANTS.items():
+        if key not in wanted:
+            continue
+        config = A2mConfig(n_actions=len(names), n_joints=skeleton.n_joints, epochs=args.epochs, **changes)
+        folders[key] = args.runs / key
+        if args.reuse and _finished(folders[key], args.epochs):
+            notes[key] = f"reused {shown(folders[key], f'RUNS/{key}')}"
         else:
-            bar, show = _bar("a2m", a2m_config.epochs)
+            bar, show = _bar(key, config.epochs)
             train_a2m(
-                train_clips, names, folders["a2m"], a2m_config, seed=args.seed, device=args.device,
-                resume=args.reuse, progress=show,
+                train_clips, names, folders[key], config, seed=args.seed, device=args.device,
+                resume=args.reuse, progress=show, bank_projections=("pca",),
             )  # fmt: skip
             bar.close()
-            notes["a2m"] = f"trained into {shown(folders['a2m'], 'RUNS/a2m')}"
+            notes[key] = f"trained into {shown(folders[key], f'RUNS/{key}')}"
 
     entries: list[dict[str, Any]] = []
     decoders: dict[str, Callable[[], None]] = {}
@@ -462,14 +472,21 @@ def main(argv: Sequence[str] | None = None) -> int:
         entries.append({"row": row, "generated": report["generated"], "per_action": report["per_action"]})
         decoders[row] = odmo_decoder(loaded)
         log.info("%s evaluated", row)
-    if "a2m" in folders:
-        a2m = load_a2m(folders["a2m"], device="cpu")
-        report = evaluate_a2m(a2m, test_clips, classifier, **evaluation)
-        atomic_write_text(args.runs / "eval_a2m.json", json.dumps(report, indent=2))
+    for key in A2M_VARIANTS:
+        if key not in folders:
+            continue
+        a2m = load_a2m(folders[key], device="cpu")
+        saved = args.runs / f"eval_{key}.json"
+        if args.reuse and _fresh_eval(saved, folders[key], classifier, evaluation, None):
+            report = json.loads(saved.read_text())
+            notes[key] += f" (evaluation reused from {shown(saved, f'RUNS/{saved.name}')})"
+        else:
+            report = evaluate_a2m(a2m, test_clips, classifier, **evaluation)
+            atomic_write_text(saved, json.dumps(report, indent=2))
         real = real or report["real"]
-        _check_same_real(real, report["real"], "a2m")
-        entries.append({"row": "a2m", "generated": report["generated"]})
-        decoders["a2m"] = a2m_decoder(a2m)
+        _check_same_real(real, report["real"], key)
+        entries.append({"row": key, "generated": report["generated"], "per_action": report["per_action"]})
+        decoders[key] = a2m_decoder(a2m)
     measured = speeds(decoders)
     for entry in entries:
         entry["speed"] = measured[entry["row"]]
@@ -483,7 +500,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         "10 % of its train clips for validation (seed of the model)",
         "Budget": f"{args.epochs} epochs × {windows} class-balanced windows for every model "
         f"(ODMO: batch 128 = 64 contrastive pairs, Adam 1e-3; A2M: batch {a2m_config.batch_size}, "
-        f"Adam {a2m_config.lr:g}, weight decay {a2m_config.weight_decay:g}, λ_KL {a2m_config.kl_weight:g}, "
+        f"Adam {A2M_VARIANTS['a2m']['lr']:g}, weight decay {a2m_config.weight_decay:g}, "
+        f"λ_KL {a2m_config.kl_weight:g}, λ_trajec {a2m_config.trajectory_weight:g}, "
         f"teacher forcing p {a2m_config.tf_rate:g} per batch)"
         + (
             "; the bundled default row keeps its own budget (see Models)" if "odmo_default" in folders else ""
