@@ -162,7 +162,8 @@ def main() -> int:
     for name in ("model.safetensors", "model.json", "latent_bank.npz", "train_log.csv"):
         shutil.copy2(work / name, out / name)
     shutil.copytree(clf_dir, out / "classifier", dirs_exist_ok=True)
-    atomic_write_text(out / "eval.json", json.dumps(report, indent=2))
+    shipped = report | {"meta": report["meta"] | {"model": out.name, "classifier": "classifier"}}
+    atomic_write_text(out / "eval.json", json.dumps(shipped, indent=2))  # no machine paths in what ships
     heldout = sorted(str(Path(c.meta["source"]).name) for c in test_clips)
     atomic_write_text(out / "heldout_clips.txt", "\n".join(heldout) + "\n")
     command = " ".join(["python", "bench/train_default.py", *card_argv(sys.argv[1:])])
