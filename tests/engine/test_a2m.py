@@ -12,7 +12,7 @@ import pytest
 import torch
 from scipy.spatial.transform import Rotation
 
-from bench.compare import ROWS, results_markdown
+from bench.compare import ROWS, per_action_entries, results_markdown
 from engine.errors import ConfigError, ModelFormatError
 from engine.generators import SampleRequest, open_generator
 from engine.generators.a2m import decode_a2m, encode_a2m, generate_a2m, load_a2m
@@ -360,3 +360,15 @@ def test_results_table_from_a_tiny_report() -> None:
     assert f"## Per action: {ROWS['odmo']} / real" in text
     walk_row = next(line for line in lines if line.startswith("| walk |"))
     assert walk_row.split("|")[2].strip() == "0.25 / 0.50"  # hand speed, generated / real
+
+
+def test_results_show_the_per_action_figures_of_the_bundled_odmo_row_and_the_a2m_row() -> None:
+    def entry(row: str, hand: float) -> dict:
+        speed = {"mean": hand, "ci95": 0.0}
+        return {"row": row, "generated": {}, "per_action": {"walk": {"real": {}, "generated": {"x": speed}}}}
+
+    entries = [entry("odmo", 0.1), entry("odmo_default", 0.2), entry("a2m", 0.3), entry("a2m_no_lie", 0.4)]
+    assert [e["row"] for e in per_action_entries(entries)] == ["odmo_default", "a2m"]
+    assert [e["row"] for e in per_action_entries(entries[2:])] == ["a2m"]
+    assert [e["row"] for e in per_action_entries(entries[3:])] == ["a2m_no_lie"]
+    assert per_action_entries([{"row": "a2m", "generated": {}}]) == []
