@@ -190,10 +190,10 @@ class ModeModel(BaseEstimator):
         w = np.asarray(self.weights_, dtype=np.float64)
         if not np.all(np.isfinite(w)) or np.any(w < 0) or abs(w.sum() - 1.0) > 1e-3:
             return f"mixture weights must be finite, non-negative and sum to 1, got {w.tolist()}"
-        for name in ("means_", "conventional_mean_"):
-            if not np.all(np.isfinite(getattr(self, name))) or np.abs(getattr(self, name)).max() > 1e6:
+        for name, values in (("means", self.means_), ("conventional_mean", self.conventional_mean_)):
+            if not np.all(np.isfinite(values)) or np.abs(values).max() > 1e6:
                 return f"{name} must be finite numbers of sensible size (|x| <= 1e6)"
-        pairs = (("covariances_", self.covariances_), ("conventional_cov_", self.conventional_cov_[None]))
+        pairs = (("covariances", self.covariances_), ("conventional_cov", self.conventional_cov_[None]))
         for name, covs in pairs:
             c = np.asarray(covs, dtype=np.float64)
             if not np.all(np.isfinite(c)) or not np.allclose(c, np.swapaxes(c, 1, 2), atol=1e-6, rtol=1e-4):
