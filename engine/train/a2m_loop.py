@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import logging
-import math
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
@@ -23,9 +22,9 @@ from engine.train.epochs import (
     check_sizes,
     provenance,
     root_height,
-    run_epochs,
-    run_identity,
     split_metas,
+    steps_per_epoch,
+    train_steps,
 )
 from engine.train.pairs import PairSampler, split_clips
 from engine.train.windows import PreparedClips, WindowBatch, crop_windows, prepare_clips
@@ -204,16 +203,14 @@ def train_a2m(
     model = model.to(dev)
     validation = crop_windows(prepared, val_idx, None) if len(val_idx) else None
     steps = A2mSteps(model, prepared, train_idx, validation)
-    steps_per_epoch = max(1, math.ceil(config.epoch_size / config.batch_size))
-    run = run_epochs(
+    run = train_steps(
         steps,
         out,
         config,
-        run_identity(config, prepared.fingerprint(), seed, val_fraction),
-        epochs=config.epochs,
-        steps_per_epoch=steps_per_epoch,
-        rng=np.random.default_rng(seed),
-        generator=torch.Generator(dev).manual_seed(seed),
+        prepared,
+        seed=seed,
+        val_fraction=val_fraction,
+        device=dev,
         resume=resume,
         progress=progress,
         cancel=cancel,
@@ -229,7 +226,7 @@ def train_a2m(
         epochs=config.epochs,
         device=dev,
         arch="a2m",
-        windows_seen=config.epochs * steps_per_epoch * config.batch_size,
+        windows_seen=config.epochs * steps_per_epoch(config) * config.batch_size,
         train_sources=[prepared.sources[i] for i in train_idx],
     )
     height = root_height(prepared)

@@ -6,6 +6,7 @@ from __future__ import annotations
 import csv
 import io
 import logging
+import math
 import platform
 import time
 from collections.abc import Callable, Sequence
@@ -226,6 +227,43 @@ def run_epochs(
     write_log(out / LOG_FILE, rows)
     steps.modules.eval()
     return EpochsRun(rows, train_seconds, train_losses, val_losses, rate * steps.windows_per_step)
+
+
+def steps_per_epoch(config: ModelConfig) -> int:
+    """Steps of one epoch: the config's ``epoch_size`` windows in batches of ``batch_size``."""
+    return max(1, math.ceil(config.epoch_size / config.batch_size))  # type: ignore[attr-defined]
+
+
+def train_steps(
+    steps: EpochSteps,
+    out_dir: Path,
+    config: ModelConfig,
+    prepared: PreparedClips,
+    *,
+    seed: int,
+    val_fraction: float,
+    device: torch.device,
+    resume: bool = False,
+    progress: Callable[[TrainProgress], None] | None = None,
+    cancel: Callable[[], bool] | None = None,
+    checkpoint_every: int = 10,
+) -> EpochsRun:
+    """``run_epochs`` as a kind's ``train`` calls it: ``config.epochs`` epochs of ``steps_per_epoch``,
+    the run's identity from its config, data (``prepared``), seed and split, the RNGs from ``seed``."""
+    return run_epochs(
+        steps,
+        out_dir,
+        config,
+        run_identity(config, prepared.fingerprint(), seed, val_fraction),
+        epochs=config.epochs,  # type: ignore[attr-defined]
+        steps_per_epoch=steps_per_epoch(config),
+        rng=np.random.default_rng(seed),
+        generator=torch.Generator(device).manual_seed(seed),
+        resume=resume,
+        progress=progress,
+        cancel=cancel,
+        checkpoint_every=checkpoint_every,
+    )
 
 
 def check_sizes(n_actions: int, n_joints: int, prepared: PreparedClips) -> None:

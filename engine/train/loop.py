@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import dataclasses
 import logging
-import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -27,9 +26,8 @@ from engine.train.epochs import (
     check_sizes,
     provenance,
     root_height,
-    run_epochs,
-    run_identity,
     split_metas,
+    train_steps,
 )
 from engine.train.pairs import PairSampler, split_clips
 from engine.train.windows import PreparedClips, WindowBatch, crop_windows, prepare_clips
@@ -257,16 +255,14 @@ def train(
     model = OdmoModel(config, seed=seed).to(dev)
     model.attach_skeleton(prepared.skeleton)
     steps = OdmoSteps(model, prepared, train_idx, _validation_set(prepared, val_idx, seed, dev, config))
-    rng = np.random.default_rng(seed)
-    run = run_epochs(
+    run = train_steps(
         steps,
         out,
         config,
-        run_identity(config, prepared.fingerprint(), seed, val_fraction),
-        epochs=config.epochs,
-        steps_per_epoch=max(1, math.ceil(config.epoch_size / config.batch_size)),
-        rng=rng,
-        generator=torch.Generator(dev).manual_seed(seed),
+        prepared,
+        seed=seed,
+        val_fraction=val_fraction,
+        device=dev,
         resume=resume,
         progress=progress,
         cancel=cancel,
