@@ -10,7 +10,6 @@ then the generator, then the generator's EMA copy, which is the model to ship.
 from __future__ import annotations
 
 import copy
-import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -229,8 +228,3 @@ class ModiSteps:
 def _floats(values: tuple[Tensor | float, ...]) -> dict[str, float]:
     """The terms as plain numbers."""
     return {k: float(v.detach() if isinstance(v, Tensor) else v) for k, v in zip(TERMS, values, strict=True)}
-
-
-def steps_per_epoch(config: ModiConfig) -> int:
-    """Steps of one epoch: ``epoch_size`` windows in batches."""
-    return max(1, math.ceil(config.epoch_size / config.batch_size))

@@ -24,8 +24,8 @@ from engine.model.skeleton_conv import (
 )
 from engine.motion.datasets import load_folder
 from engine.motion.motion import Motion
-from engine.train.epochs import run_epochs, run_identity
-from engine.train.modi_steps import ModiSteps, clip_features, steps_per_epoch, window_features
+from engine.train.epochs import run_epochs, run_identity, steps_per_epoch
+from engine.train.modi_steps import ModiSteps, clip_features, window_features
 from engine.train.windows import crop_windows, prepare_clips
 from tests.fixtures.procedural import procedural_skeleton
 
