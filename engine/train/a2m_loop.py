@@ -20,6 +20,7 @@ from engine.train.epochs import (
     TrainProgress,
     TrainResult,
     check_sizes,
+    clipped_step,
     provenance,
     root_height,
     split_metas,
@@ -79,10 +80,7 @@ class A2mSteps:
         self.batches += 1
         self.teacher_batches += teacher
         terms = _losses(self.model, batch, self.device, teacher=teacher, generator=generator)
-        self.optimizer.zero_grad(set_to_none=True)
-        terms["total"].backward()
-        torch.nn.utils.clip_grad_norm_(self.model.parameters(), self.config.grad_clip)
-        self.optimizer.step()
+        clipped_step(self.optimizer, self.model, terms["total"], self.config.grad_clip)
         return {k: float(v.detach()) for k, v in terms.items()}
 
     def validate(self) -> dict[str, float] | None:

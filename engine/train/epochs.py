@@ -229,6 +229,16 @@ def run_epochs(
     return EpochsRun(rows, train_seconds, train_losses, val_losses, rate * steps.windows_per_step)
 
 
+def clipped_step(
+    optimizer: torch.optim.Optimizer, model: torch.nn.Module, loss: torch.Tensor, clip: float
+) -> None:
+    """One optimiser step on ``loss``, the gradient norm of ``model``'s parameters clipped to ``clip``."""
+    optimizer.zero_grad(set_to_none=True)
+    loss.backward()
+    torch.nn.utils.clip_grad_norm_(model.parameters(), clip)
+    optimizer.step()
+
+
 def steps_per_epoch(config: ModelConfig) -> int:
     """Steps of one epoch: the config's ``epoch_size`` windows in batches of ``batch_size``."""
     return max(1, math.ceil(config.epoch_size / config.batch_size))  # type: ignore[attr-defined]

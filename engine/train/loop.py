@@ -24,6 +24,7 @@ from engine.train.epochs import (
     TrainProgress,
     TrainResult,
     check_sizes,
+    clipped_step,
     provenance,
     root_height,
     split_metas,
@@ -155,10 +156,7 @@ class OdmoSteps:
                 tf_rate=config.teacher_forcing(epoch),
                 generator=generator,
             )
-        self.optimizer.zero_grad(set_to_none=True)
-        terms["total"].backward()
-        torch.nn.utils.clip_grad_norm_(self.model.parameters(), config.grad_clip)
-        self.optimizer.step()
+        clipped_step(self.optimizer, self.model, terms["total"], config.grad_clip)
         return {k: float(v.detach()) for k, v in terms.items()}
 
     def validate(self) -> dict[str, float] | None:
