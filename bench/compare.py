@@ -377,6 +377,21 @@ def _fresh_eval(
     return same and same_classifier and meta.get("model") == str(folder)
 
 
+def _saved_or_run(saved: Path, reuse: bool, run: Callable[[], dict[str, Any]]) -> tuple[dict[str, Any], bool]:
+    """``saved``'s evaluation report when ``reuse``, else ``run()``'s, written to ``saved``; and whether it
+    was reused."""
+    if reuse:
+        return json.loads(saved.read_text()), True
+    report = run()
+    atomic_write_text(saved, json.dumps(report, indent=2))
+    return report, False
+
+
+def _reused_note(saved: Path) -> str:
+    """The Models note of a reused evaluation."""
+    return f" (evaluation reused from {shown(saved, f'RUNS/{saved.name}')})"
+
+
 def _check_same_real(first: dict[str, Any], other: dict[str, Any], row: str) -> None:
     """RuntimeError unless ``row`` was evaluated against the same real sets (NaN-safe comparison)."""
     if json.dumps(first, sort_keys=True) != json.dumps(other, sort_keys=True):
@@ -466,14 +481,15 @@ def main(argv: Sequence[str] | None = None) -> int:
             continue
         loaded = load_model(folders[key], device="cpu")
         saved = args.runs / f"eval_{row}.json"
-        if args.reuse and _fresh_eval(saved, folders[key], classifier, evaluation, strategy):
-            report = json.loads(saved.read_text())
-            notes[key] = (
-                notes.get(key, "") + f" (evaluation reused from {shown(saved, f'RUNS/{saved.name}')})"
-            )
-        else:
-            report = evaluate(loaded, test_clips, classifier, strategy=strategy, **evaluation)
-            atomic_write_text(saved, json.dumps(report, indent=2))
+        report, reused = _saved_or_run(
+            saved,
+            args.reuse and _fresh_eval(saved, folders[key], classifier, evaluation, strategy),
+            lambda loaded=loaded, strategy=strategy: evaluate(
+                loaded, test_clips, classifier, strategy=strategy, **evaluation
+            ),
+        )
+        if reused:
+            notes[key] = notes.get(key, "") + _reused_note(saved)
         real = real or report["real"]
         _check_same_real(real, report["real"], row)
         entries.append({"row": row, "generated": report["generated"], "per_action": report["per_action"]})
@@ -484,12 +500,13 @@ def main(argv: Sequence[str] | None = None) -> int:
             continue
         a2m = load_a2m(folders[key], device="cpu")
         saved = args.runs / f"eval_{key}.json"
-        if args.reuse and _fresh_eval(saved, folders[key], classifier, evaluation, None):
-            report = json.loads(saved.read_text())
-            notes[key] += f" (evaluation reused from {shown(saved, f'RUNS/{saved.name}')})"
-        else:
-            report = evaluate_a2m(a2m, test_clips, classifier, **evaluation)
-            atomic_write_text(saved, json.dumps(report, indent=2))
+        report, reused = _saved_or_run(
+            saved,
+            args.reuse and _fresh_eval(saved, folders[key], classifier, evaluation, None),
+            lambda a2m=a2m: evaluate_a2m(a2m, test_clips, classifier, **evaluation),
+        )
+        if reused:
+            notes[key] += _reused_note(saved)
         real = real or report["real"]
         _check_same_real(real, report["real"], key)
         entries.append({"row": key, "generated": report["generated"], "per_action": report["per_action"]})
