@@ -272,11 +272,12 @@ def read_model_folder(
     model_dir: str | Path,
     arch: str,
     config_type: type[ModelConfig],
-    build: Callable[[Any], torch.nn.Module],
+    build: Callable[[Any, Skeleton], torch.nn.Module],
     device: str = "cpu",
 ) -> FolderContents:
     """Read a folder of kind ``arch`` strictly (ModelFormatError for anything missing, corrupt, mis-shaped,
-    newer or of another kind); ``build(config)`` makes the network its weights load into (eval mode)."""
+    newer or of another kind); ``build(config, skeleton)`` makes the network its weights load into (eval
+    mode)."""
     folder = Path(model_dir)
     if not folder.is_dir():
         raise ModelFormatError(f"{folder}: not a model folder")
@@ -297,7 +298,7 @@ def read_model_folder(
         raise ModelFormatError(f"{meta_path}: bad skeleton, action names or root height: {exc}") from exc
     if len(names) != config.n_actions or skeleton.n_joints != config.n_joints:
         raise ModelFormatError(f"{meta_path}: action names or skeleton disagree with the config")
-    model = build(config)
+    model = build(config, skeleton)
     model.load_state_dict(read_weights(folder / WEIGHTS_FILE, model, meta))
     model.to(resolve_device(device)).eval()
     return FolderContents(meta, config, skeleton, names, model, folder)
@@ -305,6 +306,6 @@ def read_model_folder(
 
 def load_model(model_dir: str | Path, device: str = "cpu", with_bank: bool = True) -> LoadedModel:
     """Read an ODMO model folder strictly (see :func:`read_model_folder`), with its latent bank."""
-    found = read_model_folder(model_dir, "odmo", OdmoConfig, OdmoModel, device)
+    found = read_model_folder(model_dir, "odmo", OdmoConfig, lambda config, _: OdmoModel(config), device)
     bank = read_bank(found.path, found.meta) if with_bank else None
     return LoadedModel(**found.loaded_fields(), bank=bank)

@@ -145,9 +145,8 @@ def format_per_action(result: dict[str, Any]) -> str:
 def _cmd_eval(args: argparse.Namespace) -> int:
     from engine.fileio import atomic_write_text
     from engine.generators import open_generator
-    from engine.metrics.by_kind import evaluate_generator
+    from engine.metrics.by_kind import check_evaluable, evaluate_generator
     from engine.metrics.classifier import META_FILE, load_classifier
-    from engine.metrics.evaluate import check_compatible
     from engine.motion.datasets import drop_extra_joints
 
     loaded = open_generator(args.model)
@@ -157,7 +156,7 @@ def _cmd_eval(args: argparse.Namespace) -> int:
     classifier = None if clf_dir is None else load_classifier(clf_dir)
     data = _load_clips(args.real, args)
     clips = [drop_extra_joints(clip, loaded.skeleton.names) for clip in data.clips]
-    check_compatible(loaded, clips, classifier)  # fail before the progress bar appears
+    check_evaluable(loaded, clips, classifier)  # fail before the progress bar appears
     with _bar("evaluating") as progress:
         result = evaluate_generator(
             loaded,

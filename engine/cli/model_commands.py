@@ -67,19 +67,26 @@ def _write(samples: list[Sample], paths: list[Path]) -> None:
         print(f"{path}{mode}")
 
 
-def endpoint_code(generator: Generator, text: str, action: str) -> np.ndarray:
-    """The code named by ``text`` (see ENDPOINT_HELP) among the bank codes of ``action``."""
+def endpoint_code(generator: Generator, text: str, action: str | None) -> np.ndarray:
+    """The code named by ``text`` (see ENDPOINT_HELP) among the bank codes of ``action`` (any bank code,
+    and no mode means, when ``action`` is None: an unconditional model)."""
     match = _ENDPOINT_RE.match(text.strip())
     if match is None:
         raise ConfigError(f"bad endpoint {text!r}: {ENDPOINT_HELP}")
     bank = generator.bank
     if bank is None:
         raise ConfigError(f"{generator.path}: the model has no latent bank (run `odmo bank`)")
-    names = generator.action_names or []
+    kind, number = match.group(1), int(match.group(2))
+    if action is None:
+        if kind == "m":
+            raise ConfigError(f"endpoint {text!r}: a mode belongs to an action; name it with --action")
+        if number >= len(bank.codes):
+            raise ConfigError(f"the latent bank has codes i0..i{len(bank.codes) - 1}")
+        return np.asarray(bank.codes[number], dtype=np.float32)
+    names = bank.action_names
     if action not in names:
         raise ConfigError(f"unknown action {action!r}; the model knows: {', '.join(names)}")
     index = names.index(action)
-    kind, number = match.group(1), int(match.group(2))
     if kind == "m":
         if index not in bank.modes:
             raise ConfigError(f"action {action!r} has no modes in the latent bank")
@@ -206,10 +213,11 @@ def _bank_locked(args: argparse.Namespace) -> int:
 
     loaded = open_generator(args.model, with_bank=False)  # a damaged bank must not stop its rebuild
     require(loaded, "encode", "build a latent bank (it cannot encode clips into codes)")
+    names = loaded.label_names
     dataset = _dataset(args)
-    unknown = sorted({c.action for c in dataset.clips} - set(loaded.action_names))
+    unknown = sorted({c.action for c in dataset.clips} - set(names))
     if unknown:
-        raise DataError(f"{args.data}: actions {unknown} are not the model's {loaded.action_names}")
+        raise DataError(f"{args.data}: actions {unknown} are not the model's {names}")
     codes, ends, owners, starts = loaded.encode_bank(dataset.clips, args.stride)
     clips = [dataset.clips[k] for k in owners]
     metas = [dict(c.meta) for c in clips]
@@ -225,11 +233,11 @@ def _bank_locked(args: argparse.Namespace) -> int:
 
         bank = build_bank(
             codes,
-            np.array([loaded.action_names.index(c.action) for c in clips]),
+            np.array([names.index(c.action) for c in clips]),
             ends,
             [str(c.meta.get("source", c.meta.get("path", i))) for i, c in enumerate(clips)],
             metas,
-            loaded.action_names,
+            names,
             projections=args.projections,
             seed=args.seed,
             progress=report,
@@ -237,18 +245,25 @@ def _bank_locked(args: argparse.Namespace) -> int:
     finally:
         progress.close()
     path = save_bank(loaded.path, bank)
-    sizes = ", ".join(f"{loaded.action_names[a]}: {m.n_modes_}" for a, m in sorted(bank.modes.items()))
+    sizes = ", ".join(f"{names[a]}: {m.n_modes_}" for a, m in sorted(bank.modes.items()))
     print(f"{path}: {len(codes)} codes; modes {sizes}")
     return 0
 
 
 def _cmd_sample(args: argparse.Namespace) -> int:
-    from engine.generators import SampleRequest, open_generator
+    from engine.generators import SampleRequest, open_generator, require
 
     check_count("--n", args.n)
-    request = SampleRequest(args.action, args.n, args.seed, args.strategy, args.mode, _end(args))
-    with _outputs(args.out, args.n, args.action) as paths:
-        _write(open_generator(args.model).sample(request), paths)
+    request = SampleRequest(
+        args.action, args.n, args.seed, args.strategy, args.mode, _end(args), truncation=args.truncation
+    )
+    with _outputs(args.out, args.n, args.action or "sample") as paths:
+        generator = open_generator(args.model)
+        if args.truncation != 1.0:
+            require(generator, "truncate")
+        if args.action is None and generator.action_names is not None:
+            raise ConfigError(f"{args.model}: name an --action: {', '.join(generator.action_names)}")
+        _write(generator.sample(request), paths)
     return 0
 
 
@@ -256,9 +271,11 @@ def _cmd_interpolate(args: argparse.Namespace) -> int:
     from engine.generators import open_generator, require
 
     check_count("--steps", args.steps)
-    with _outputs(args.out, args.steps, f"{args.action}_{args.from_}_{args.to}") as paths:
+    with _outputs(args.out, args.steps, f"{args.action or 'code'}_{args.from_}_{args.to}") as paths:
         generator = open_generator(args.model)
         require(generator, "interpolate")
+        if args.action is None and generator.action_names is not None:
+            raise ConfigError(f"{args.model}: name an --action: {', '.join(generator.action_names)}")
         a, b = (endpoint_code(generator, text, args.action) for text in (args.from_, args.to))
         _write(generator.interpolate(a, b, args.action, args.steps, method=args.method), paths)
     return 0
@@ -278,7 +295,7 @@ def _cmd_encode(args: argparse.Namespace) -> int:
     report = {
         "file": str(args.file),
         "code": [round(float(v), 6) for v in code],
-        "action": None if guess is None else generator.action_names[guess],
+        "action": None if guess is None else generator.label_names[guess],
         "mode": mode,
     }
     if args.json:
@@ -334,9 +351,14 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )
     p.set_defaults(func=_cmd_bank)
 
-    p = subparsers.add_parser("sample", help="sample motions of one action from its discovered modes")
+    p = subparsers.add_parser("sample", help="sample motions (of one action, for a conditional model)")
     p.add_argument("--model", type=Path, required=True, help="model folder")
-    p.add_argument("--action", required=True, help="action name")
+    p.add_argument(
+        "--action", help="action name (a conditional model needs one; MoDi: sample that label's modes)"
+    )
+    p.add_argument(
+        "--truncation", type=float, default=1.0, metavar="PSI", help="pull codes to the mean code (MoDi)"
+    )
     p.add_argument("--mode", type=int, default=None, help="sample only this mode (overrides --strategy)")
     p.add_argument("--n", type=int, default=1, help="how many motions")
     p.add_argument("--end", type=float, nargs=2, metavar=("X", "Z"), help="end location on the floor, metres")
@@ -344,7 +366,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument(
         "--strategy",
         choices=("mode_preserving", "conventional", "prior"),
-        help="ODMO: mode_preserving (default) or conventional; Action2Motion: prior (its only one)",
+        help="ODMO: mode_preserving (default) or conventional; Action2Motion and MoDi: prior (default) or "
+        "the bank's modes",
     )
     p.add_argument(
         "--out", type=Path, required=True, help="a .npz/.bvh/.npy file (numbered if N > 1) or a folder"
@@ -357,7 +380,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         description=f"Endpoints: {ENDPOINT_HELP}.",
     )
     p.add_argument("--model", type=Path, required=True, help="model folder")
-    p.add_argument("--action", required=True, help="action name")
+    p.add_argument("--action", help="action name (a conditional model needs one)")
     p.add_argument("--from", dest="from_", required=True, metavar="mN|iN", help=ENDPOINT_HELP)
     p.add_argument("--to", required=True, metavar="mN|iN", help=ENDPOINT_HELP)
     p.add_argument("--steps", type=int, default=8, help="motions, endpoints included")

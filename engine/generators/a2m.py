@@ -48,7 +48,7 @@ class LoadedA2m:
 
 def load_a2m(model_dir: str | Path, device: str = "cpu", with_bank: bool = True) -> LoadedA2m:
     """Read an A2M folder strictly: bad, newer or non-A2M files raise ModelFormatError."""
-    found = read_model_folder(model_dir, ARCH, A2mConfig, A2mModel, device)
+    found = read_model_folder(model_dir, ARCH, A2mConfig, lambda config, _: A2mModel(config), device)
     with_bank = with_bank and (found.path / BANK_FILE).is_file()
     bank = read_bank(found.path, found.meta) if with_bank else None
     return LoadedA2m(**found.loaded_fields(), bank=bank)

@@ -60,7 +60,8 @@ class SampleRequest:
     """What to sample: ``n`` motions of ``action`` (None for an unconditional kind) from ``seed``.
 
     ``strategy`` and ``mode`` pick how codes are drawn (None: the kind's default); ``end`` (3,) is where
-    the motion should end, for kinds with the "end" capability; ``weights`` weigh the action's modes.
+    the motion should end, for kinds with the "end" capability; ``weights`` weigh the action's modes;
+    ``truncation`` ψ pulls codes towards the mean code (1: none), for kinds with "truncate".
     """
 
     action: str | None
@@ -70,6 +71,7 @@ class SampleRequest:
     mode: int | None = None
     end: np.ndarray | None = None
     weights: tuple[float, ...] | None = None  # per-mode weights, for the "weights" strategy
+    truncation: float = 1.0
 
 
 class FolderGenerator:
@@ -100,6 +102,12 @@ class FolderGenerator:
     @property
     def action_names(self) -> list[str] | None:
         """The actions it is conditioned on (None for an unconditional kind)."""
+        return list(self.loaded.action_names)
+
+    @property
+    def label_names(self) -> list[str]:
+        """The action labels of its training data (a conditional kind's ``action_names``), which its bank
+        codes carry."""
         return list(self.loaded.action_names)
 
     @property
@@ -159,6 +167,7 @@ class Generator(Protocol):
     fps: float
     window: int
     action_names: list[str] | None
+    label_names: list[str]
     code_space: CodeSpace
     capabilities: frozenset[str]
     bank: LatentBank | None
@@ -232,7 +241,8 @@ def require(generator: Generator, capability: str, asked: str | None = None) -> 
 def _register_builtin() -> None:
     """Register the kinds this program ships (imported lazily: each brings in torch)."""
     if "odmo" not in _KINDS:
-        from engine.generators import a2m, odmo
+        from engine.generators import a2m, modi, odmo
 
         register_kind("odmo", odmo.open_odmo)
         register_kind("a2m", a2m.open_a2m)
+        register_kind("modi", modi.open_modi)

@@ -13,6 +13,20 @@ if TYPE_CHECKING:
     from engine.motion.motion import Motion
 
 
+def check_evaluable(
+    generator: Generator, real_clips: Sequence[Motion], classifier: Classifier | None
+) -> None:
+    """ConfigError/DataError (one line) unless the clips and classifier fit the model (before any work)."""
+    from engine.metrics.evaluate import check_compatible
+
+    if generator.kind == "modi":
+        from engine.metrics.modi_eval import evaluable_spec
+
+        check_compatible(evaluable_spec(generator, classifier), real_clips, classifier)
+    else:
+        check_compatible(generator, real_clips, classifier)
+
+
 def evaluate_generator(
     generator: Generator,
     real_clips: Sequence[Motion],
@@ -26,8 +40,8 @@ def evaluate_generator(
 ) -> dict[str, Any]:
     """``evaluate``'s report (real and generated metrics, per action, meta) for a model of any kind.
 
-    ``strategy`` picks how ODMO draws codes (None: mode-preserving); Action2Motion samples from its
-    learned prior, and a strategy given for it is refused.
+    ``strategy`` picks how ODMO draws codes (None: mode-preserving); Action2Motion and MoDi sample from
+    their prior, and a strategy given for them is refused.
     """
     options = {"repeats": repeats, "n_per_action": n_per_action, "seed": seed, "progress": progress}
     if generator.kind == "odmo":
@@ -44,4 +58,10 @@ def evaluate_generator(
         from engine.metrics.a2m_eval import evaluate_a2m
 
         return evaluate_a2m(generator.loaded, real_clips, classifier, **options)
+    if generator.kind == "modi":
+        if strategy is not None:
+            raise ConfigError(f"{generator.path}: a modi model is evaluated on its prior; drop --strategy")
+        from engine.metrics.modi_eval import evaluate_modi
+
+        return evaluate_modi(generator, real_clips, classifier, **options)
     raise ConfigError(f"{generator.path}: no evaluation for {generator.kind} models")

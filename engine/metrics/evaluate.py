@@ -23,6 +23,7 @@ from engine.metrics.physics import physics_metrics
 from engine.metrics.reconstruction import mpjpe
 from engine.metrics.stats import summarize
 from engine.metrics.trajectory import control_targets, end_point_errors, root_travel
+from engine.metrics.unconditional import action_kl, action_shares, kid, precision_recall
 from engine.modelio import LoadedModel
 from engine.motion.motion import Motion
 from engine.motion.skeleton import Skeleton
@@ -126,8 +127,13 @@ def _set_metrics(
         feats, pred = _classify(classifier, windows, mask, names)
         out["accuracy"] = recognition_accuracy(pred, labels)
         out["fid"] = fid(feats, reference["features"])
+        out["kid"] = kid(feats, reference["features"])
+        out["precision"], out["recall"] = precision_recall(reference["features"], feats)
         out["diversity"] = diversity(feats, rng)
         out["multimodality"] = multimodality(feats, labels, rng)
+        out["action_kl"] = action_kl(reference["labels"], pred, len(names))
+        shares = action_shares(pred, len(names))
+        out.update({f"predicted_share{PER_ACTION}{n}": float(v) for n, v in zip(names, shares, strict=True)})
     groups = _by_action(windows, labels)
     out["apd"] = float(np.mean([apd(g) for g in groups.values()]))
     out["n_apd"] = n_apd(groups, reference["groups"])
@@ -403,7 +409,7 @@ def _reference(batch: WindowBatch, classifier: Classifier | None) -> dict[str, A
     """What a set is compared with: the real set's classifier features and per-action windows."""
     joints, labels = np.asarray(batch.joints, np.float32), np.asarray(batch.actions)
     feats = None if classifier is None else classifier.classify(joints, batch.mask)[0]
-    return {"features": feats, "groups": _by_action(joints, labels)}
+    return {"features": feats, "groups": _by_action(joints, labels), "labels": labels}
 
 
 def _generate(

@@ -45,6 +45,8 @@ class ModiConfig(ModelConfig):
     ``fcon_weight``; ``mixing`` is the share of style-mixed training samples; ``w_avg_beta`` the EMA rate
     of the mean w (truncation); ``ema_windows`` the half-life (windows) of the generator EMA that is
     shipped. ``n_actions``: actions of the training data (unused by the model, kept for labelling).
+    ``foot_heights``: resting height (m) of each foot joint (``foot_joints`` order) in the training data,
+    set when the model is saved; the decode-time foot clean-up needs them (empty: no clean-up).
     """
 
     n_joints: int
@@ -70,6 +72,7 @@ class ModiConfig(ModelConfig):
     ema_windows: int = 10_000
     epoch_size: int = 2048
     epochs: int = 160
+    foot_heights: tuple[float, ...] = ()
     arch: str = "modi"
 
     POSITIVE = ("n_joints", "window", "fps", "levels", "channels", "min_channels", "w_dim", "kernel", "lr")
@@ -85,6 +88,10 @@ class ModiConfig(ModelConfig):
             raise ConfigError(f"window {self.window} does not halve {self.levels - 1} times")
         if self.kernel % 2 == 0:
             raise ConfigError(f"kernel must be odd, got {self.kernel}")
+        try:
+            self.foot_heights = tuple(float(h) for h in self.foot_heights)
+        except (TypeError, ValueError) as exc:
+            raise ConfigError(f"foot_heights must be a list of numbers ({exc})") from None
 
     def level_channels(self) -> list[int]:
         """Channels of each level, coarsest first."""
@@ -158,7 +165,7 @@ def _reset(module: nn.Module, generator: torch.Generator) -> None:
             layer.reset_parameters(generator)
 
 
-class ModiGenerator(nn.Module):
+class ModiNetwork(nn.Module):
     """Mapping network and motion synthesis network on ``skeleton``; parameters from ``seed``.
 
     Style layers (``n_styles``): the coarsest level's convolution and motion output, then per finer

@@ -17,7 +17,7 @@ import torch
 from scipy.spatial.transform import Rotation
 from torch import Tensor, nn
 
-from engine.model.modi import ModiConfig, ModiDiscriminator, ModiGenerator
+from engine.model.modi import ModiConfig, ModiDiscriminator, ModiNetwork
 from engine.model.modi_losses import contact_losses, d_adversarial, g_adversarial, r1_penalty
 from engine.motion.contact import contact_labels, foot_joints, resting_heights
 from engine.motion.ik import joints_to_rotations
@@ -55,7 +55,7 @@ def clip_features(prepared: PreparedClips) -> ClipFeatures:
 
 
 def window_features(
-    generator: ModiGenerator, clips: ClipFeatures, batch: WindowBatch
+    generator: ModiNetwork, clips: ClipFeatures, batch: WindowBatch
 ) -> tuple[Tensor, Tensor, Tensor]:
     """Rotations (B, T, J, 3, 3), root positions (B, T, 3) and contacts (B, T, F) of ``batch``'s windows,
     in its canonical frame (padded like its joints, with the last frame)."""
@@ -121,7 +121,7 @@ class ModiSteps:
         self.train_idx = np.asarray(train_idx, dtype=np.int64)
         self.windows_per_step = config.batch_size
         self.clips = clip_features(prepared) if clips is None else clips
-        g = ModiGenerator(config, prepared.skeleton, seed).to(device)
+        g = ModiNetwork(config, prepared.skeleton, seed).to(device)
         g.coder.set_statistics(self._raw(g, crop_windows(prepared, self.train_idx, None)))
         d = ModiDiscriminator(config, prepared.skeleton, seed + 1).to(device)
         g_ema = copy.deepcopy(g).eval()
@@ -140,7 +140,7 @@ class ModiSteps:
         val_gen = torch.Generator(g.w_avg.device).manual_seed(seed + 2)
         self.val_z = torch.randn(max(len(val_idx), 1), config.w_dim, generator=val_gen, device=g.w_avg.device)
 
-    def _raw(self, g: ModiGenerator, batch: WindowBatch) -> Tensor:
+    def _raw(self, g: ModiNetwork, batch: WindowBatch) -> Tensor:
         return g.coder.raw_features(*window_features(g, self.clips, batch))
 
     def real(self, rng: np.random.Generator) -> Tensor:

@@ -22,7 +22,18 @@ from engine.motion.motion import Motion
 from engine.train.windows import crop_windows, prepare_clips
 from tests.fixtures.procedural import PROCEDURAL_ACTIONS
 
-REAL_KEYS = {"accuracy", "fid", "diversity", "multimodality", "apd", "n_apd"}
+REAL_KEYS = {
+    "accuracy",
+    "fid",
+    "kid",
+    "precision",
+    "recall",
+    "action_kl",
+    "diversity",
+    "multimodality",
+    "apd",
+    "n_apd",
+}
 MODEL_KEYS = {"mode_homogeneity", "style_nmi", "style_ari", "reconstruction_error_m"}
 CONTROL_KEYS = {"end_error_m", "end_error_pct", "control_accuracy"}
 CONTROL_KEYS |= {"end_error_out_m", "end_error_out_pct", "control_accuracy_out"}
@@ -183,6 +194,26 @@ def test_cli_eval_takes_any_kind(tiny_a2m_dir: Path, procedural_clips, tmp_path:
     assert engine.cli.main([*argv, "--strategy", "conventional"]) == 1
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "learned prior" in err
+
+
+def test_cli_eval_of_an_unconditional_model(tiny_modi_dir: Path, procedural_clips, tmp_path: Path) -> None:
+    data = _write_folder(procedural_clips[::3], tmp_path / "real")
+    clf = tmp_path / "clf"
+    train_classifier(procedural_clips, PROCEDURAL_ACTIONS, clf, epochs=2, batch_size=16, seed=0, window=12)
+    out = tmp_path / "eval.json"
+    argv = ["eval", "--model", str(tiny_modi_dir), "--real", str(data), "--labels", "labels.csv"]
+    argv += ["--classifier", str(clf), "--repeats", "2", "--n-per-action", "6", "--json", str(out)]
+    assert engine.cli.main(argv) == 0
+    result = json.loads(out.read_text())
+    generated = result["generated"]
+    assert generated.keys() >= {"fid", "kid", "precision", "recall", "action_kl", "inversion_error_m"}
+    assert generated.keys() >= PHYSICS_KEYS
+    assert "accuracy" not in generated and "accuracy" in result["real"]  # its labels are predictions
+    assert result["meta"]["window"] == 12  # the motions' centre 12 of 16 frames, as the classifier reads
+    assert 0.0 <= generated["precision"]["mean"] <= 1.0 and generated["action_kl"]["mean"] >= 0.0
+    shares = [row["generated"]["predicted_share"]["mean"] for row in result["per_action"].values()]
+    assert sum(shares) == pytest.approx(1.0, abs=1e-6)
+    assert engine.cli.main([*argv, "--strategy", "conventional"]) == 1
 
 
 def test_cli_errors_are_one_line(

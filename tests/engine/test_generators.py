@@ -35,6 +35,7 @@ FOLDERS = {
     "a2m": "tiny_a2m_dir",
     "a2m-baseline": "tiny_a2m_old_dir",
     "bandai2-a2m": "bundled_a2m_dir",
+    "modi": "tiny_modi_dir",
 }
 BUNDLED_A2M = Path(__file__).resolve().parents[2] / "resources" / "models" / "bandai2-a2m"
 
@@ -52,8 +53,13 @@ def folder(request: pytest.FixtureRequest) -> Path:
     return request.getfixturevalue(FOLDERS[request.param])
 
 
+def action_of(generator: Generator, k: int) -> str | None:
+    """The k-th action of a conditional kind; None for an unconditional one."""
+    return None if generator.action_names is None else generator.action_names[k]
+
+
 def test_every_shipped_kind_is_registered() -> None:
-    assert kinds() == ["a2m", "odmo"]
+    assert kinds() == ["a2m", "modi", "odmo"]
 
 
 def test_open_picks_the_kind_from_model_json(folder: Path) -> None:
@@ -66,14 +72,14 @@ def test_open_picks_the_kind_from_model_json(folder: Path) -> None:
 
 def test_samples_have_the_models_shape_units_and_skeleton(folder: Path) -> None:
     generator = open_generator(folder)
-    action = generator.action_names[1]
+    action = action_of(generator, 1)
     samples = generator.sample(SampleRequest(action, 3, 5))
     assert len(samples) == 3
     for s in samples:
         m = s.motion
         assert m.joints.shape == (generator.window, generator.skeleton.n_joints, 3)
         assert m.joints.dtype == np.float32 and np.isfinite(m.joints).all()
-        assert m.fps == generator.fps and m.action == action
+        assert m.fps == generator.fps and (action is None or m.action == action)
         assert m.skeleton.same_topology(generator.skeleton)
         height = m.joints[:, :, 1]
         assert 0.3 < float(np.median(height)) < 2.5, "metres, y up, standing at display height"
@@ -81,7 +87,7 @@ def test_samples_have_the_models_shape_units_and_skeleton(folder: Path) -> None:
 
 def test_same_seed_same_motions_other_seed_others(folder: Path) -> None:
     generator = open_generator(folder)
-    action = generator.action_names[0]
+    action = action_of(generator, 0)
     a = [s.motion.joints for s in generator.sample(SampleRequest(action, 2, 11))]
     b = [s.motion.joints for s in generator.sample(SampleRequest(action, 2, 11))]
     c = [s.motion.joints for s in generator.sample(SampleRequest(action, 2, 12))]
@@ -91,7 +97,7 @@ def test_same_seed_same_motions_other_seed_others(folder: Path) -> None:
 
 def test_a_copied_folder_reopens_to_the_same_motions(folder: Path, tmp_path: Path) -> None:
     copy = Path(shutil.copytree(folder, tmp_path / "copy"))
-    action = open_generator(folder).action_names[2]
+    action = action_of(open_generator(folder), 2)
     first = open_generator(folder).sample(SampleRequest(action, 2, 3))
     again = open_generator(copy).sample(SampleRequest(action, 2, 3))
     for x, y in zip(first, again, strict=True):
@@ -100,28 +106,14 @@ def test_a_copied_folder_reopens_to_the_same_motions(folder: Path, tmp_path: Pat
 
 def test_cli_sample_opens_every_kind(folder: Path, tmp_path: Path) -> None:
     generator = open_generator(folder)
-    action = generator.action_names[0]
+    action = action_of(generator, 0)
     out = tmp_path / "out"
-    assert (
-        main(
-            [
-                "sample",
-                "--model",
-                str(folder),
-                "--action",
-                action,
-                "--n",
-                "2",
-                "--seed",
-                "4",
-                "--out",
-                str(out),
-            ]
-        )
-        == 0
-    )
+    named = [] if action is None else ["--action", action]
+    argv = ["sample", "--model", str(folder), *named, "--n", "2", "--seed", "4", "--out", str(out)]
+    assert main(argv) == 0
     files = sorted(out.glob("*.npz"))
-    assert [f.name for f in files] == [f"{action}_000.npz", f"{action}_001.npz"]
+    stem = action or "sample"
+    assert [f.name for f in files] == [f"{stem}_000.npz", f"{stem}_001.npz"]
     expected = generator.sample(SampleRequest(action, 2, 4))
     for f, s in zip(files, expected, strict=True):
         np.testing.assert_allclose(read_npz(f).joints, s.motion.joints, atol=1e-6)
@@ -131,17 +123,20 @@ def test_declared_capabilities_work_and_the_others_are_refused(
     folder: Path, tmp_path: Path, capsys: pytest.CaptureFixture
 ) -> None:
     generator = open_generator(folder)
-    action = generator.action_names[0]
+    action = action_of(generator, 0)
     clip = generator.sample(SampleRequest(action, 1, 0))[0].motion
     write_motion(clip, tmp_path / "clip.npz")
-    model = ["--model", str(folder), "--action", action]
+    named = [] if action is None else ["--action", action]
+    model = ["--model", str(folder), *named]
     bank = generator.bank
+    label = action if action is not None else bank.action_names[0]  # an unconditional kind's bank label
     ends = ["i0", "i1"] if bank is None else [f"i{i}" for i in np.flatnonzero(bank.actions == 0)[:2]]
     runs = {
         "encode": ["encode", "--model", str(folder), str(tmp_path / "clip.npz")],
         "interpolate": ["interpolate", *model, "--from", ends[0], "--to", ends[1], "--steps", "3", "--out",
                         str(tmp_path / "strip")],
-        "modes": ["sample", *model, "--mode", "0", "--out", str(tmp_path / "m.npz")],
+        "modes": ["sample", "--model", str(folder), "--action", label, "--mode", "0", "--out",
+                  str(tmp_path / "m.npz")],
         "end": ["sample", *model, "--end", "1", "2", "--out", str(tmp_path / "e.npz")],
     }  # fmt: skip
     for capability, argv in runs.items():
@@ -163,7 +158,7 @@ def test_declared_capabilities_work_and_the_others_are_refused(
             generator.decode(np.zeros((1, generator.code_space.size)), action)
     if "bank" in generator.capabilities:
         assert bank is not None and bank.codes.shape[1] == generator.code_space.size
-        assert bank.action_names == generator.action_names
+        assert bank.action_names == generator.label_names
         pca = bank.projections["pca"]
         np.testing.assert_allclose(pca.transform(bank.codes[:5]), pca.embedding_[:5], atol=1e-4)
     else:
@@ -185,8 +180,8 @@ def test_require_names_what_the_model_can_do(
 def test_unknown_kinds_are_refused_by_name(tiny_a2m_dir: Path, tmp_path: Path) -> None:
     copy = Path(shutil.copytree(tiny_a2m_dir, tmp_path / "copy"))
     meta = json.loads((copy / "model.json").read_text())
-    (copy / "model.json").write_text(json.dumps(meta | {"arch": "modi"}))
+    (copy / "model.json").write_text(json.dumps(meta | {"arch": "gan9"}))
     with pytest.raises(
-        ModelFormatError, match=r"model\.json: unknown model kind 'modi'; this program opens a2m, odmo"
+        ModelFormatError, match=r"model\.json: unknown model kind 'gan9'; this program opens a2m, modi, odmo"
     ):
         open_generator(copy)

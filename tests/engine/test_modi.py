@@ -12,7 +12,7 @@ import torch
 import torch.nn.functional as F  # noqa: N812
 
 from engine.errors import ConfigError, ModelFormatError
-from engine.model.modi import ModiConfig, ModiDiscriminator, ModiGenerator
+from engine.model.modi import ModiConfig, ModiDiscriminator, ModiNetwork
 from engine.model.modi_losses import contact_losses, r1_penalty
 from engine.model.skeleton_conv import (
     SkeletalConv,
@@ -179,13 +179,13 @@ def test_modulated_conv_matches_per_sample_weights(resample: str) -> None:
 
 
 @pytest.fixture(scope="module")
-def small_models() -> tuple[ModiGenerator, ModiDiscriminator]:
+def small_models() -> tuple[ModiNetwork, ModiDiscriminator]:
     skeleton = procedural_skeleton()
     config = small_config(skeleton.n_joints)
-    return ModiGenerator(config, skeleton, seed=3), ModiDiscriminator(config, skeleton, seed=4)
+    return ModiNetwork(config, skeleton, seed=3), ModiDiscriminator(config, skeleton, seed=4)
 
 
-def test_shapes_and_styles(small_models: tuple[ModiGenerator, ModiDiscriminator]) -> None:
+def test_shapes_and_styles(small_models: tuple[ModiNetwork, ModiDiscriminator]) -> None:
     g, d = small_models
     x = g(torch.randn(5, 32))
     assert x.shape == (5, 11 + 1 + 2, 6, 16)  # joints, displacement, two feet; K = 6; 16 frames
@@ -194,7 +194,7 @@ def test_shapes_and_styles(small_models: tuple[ModiGenerator, ModiDiscriminator]
     assert g.coder.joints(x).shape == (5, 16, 11, 3)
 
 
-def test_decoded_bones_keep_their_lengths(small_models: tuple[ModiGenerator, ModiDiscriminator]) -> None:
+def test_decoded_bones_keep_their_lengths(small_models: tuple[ModiNetwork, ModiDiscriminator]) -> None:
     g, _ = small_models
     with torch.no_grad():
         g.coder.std.mul_(3.0)  # wild rotations: every bone still rigid
@@ -211,10 +211,10 @@ def test_decoded_bones_keep_their_lengths(small_models: tuple[ModiGenerator, Mod
 def test_same_seed_same_model_and_motions() -> None:
     skeleton = procedural_skeleton()
     config = small_config(skeleton.n_joints)
-    a, b = ModiGenerator(config, skeleton, seed=7), ModiGenerator(config, skeleton, seed=7)
+    a, b = ModiNetwork(config, skeleton, seed=7), ModiNetwork(config, skeleton, seed=7)
     for (name, p), q in zip(a.state_dict().items(), b.state_dict().values(), strict=True):
         assert torch.equal(p, q), name
-    other = ModiGenerator(config, skeleton, seed=8)
+    other = ModiNetwork(config, skeleton, seed=8)
     assert not torch.equal(a.const, other.const)
     with torch.no_grad():  # noise strengths start at 0; give the noise a say
         for conv in [*a.convs, *b.convs]:
@@ -226,7 +226,7 @@ def test_same_seed_same_model_and_motions() -> None:
     assert not torch.allclose(draw[0], a(z))  # random noise is not the fixed noise
 
 
-def test_truncation_zero_decodes_the_mean_w(small_models: tuple[ModiGenerator, ModiDiscriminator]) -> None:
+def test_truncation_zero_decodes_the_mean_w(small_models: tuple[ModiNetwork, ModiDiscriminator]) -> None:
     g, _ = small_models
     with torch.no_grad():
         g.w_avg.copy_(torch.randn(32))
@@ -238,7 +238,7 @@ def test_truncation_zero_decodes_the_mean_w(small_models: tuple[ModiGenerator, M
 
 
 def test_style_mixing_ends_are_the_single_codes(
-    small_models: tuple[ModiGenerator, ModiDiscriminator],
+    small_models: tuple[ModiNetwork, ModiDiscriminator],
 ) -> None:
     g, _ = small_models
     with torch.no_grad():
@@ -280,7 +280,7 @@ def test_r1_penalty_matches_finite_differences() -> None:
     assert weight.grad is not None and torch.isfinite(weight.grad).all()
 
 
-def test_contact_losses(small_models: tuple[ModiGenerator, ModiDiscriminator]) -> None:
+def test_contact_losses(small_models: tuple[ModiNetwork, ModiDiscriminator]) -> None:
     g, _ = small_models
     x = torch.zeros(2, g.coder.n_entities, 6, 16)
     first_contact = g.coder.n_joints + 1
@@ -320,7 +320,7 @@ def test_config_round_trip_and_strictness() -> None:
     assert config.level_channels() == [128, 64, 32, 16, 16]
     assert config.level_frames() == [4, 8, 16, 32, 64]
     with pytest.raises(ConfigError, match="joints"):
-        ModiGenerator(config, procedural_skeleton())
+        ModiNetwork(config, procedural_skeleton())
 
 
 # --- data and training ------------------------------------------------------------------------------------
@@ -329,7 +329,7 @@ def test_config_round_trip_and_strictness() -> None:
 def test_real_windows_rebuild_their_joints(bandai_clips: list[Motion]) -> None:
     config = ModiConfig(n_joints=21)
     prepared = prepare_clips(bandai_clips, sorted({c.action for c in bandai_clips}), 20.0, 64)
-    g = ModiGenerator(config, prepared.skeleton)
+    g = ModiNetwork(config, prepared.skeleton)
     clips = clip_features(prepared)
     batch = crop_windows(prepared, np.arange(prepared.n_clips), np.random.default_rng(0))
     raw = g.coder.raw_features(*window_features(g, clips, batch))
@@ -375,7 +375,7 @@ def test_training_steps_stay_finite_and_resume_the_r1_schedule(procedural_clips:
 
 
 def test_feet_by_their_chains_are_the_full_forward_kinematics(
-    small_models: tuple[ModiGenerator, ModiDiscriminator],
+    small_models: tuple[ModiNetwork, ModiDiscriminator],
 ) -> None:
     g, _ = small_models
     with torch.no_grad():

@@ -1,0 +1,215 @@
+"""Training of MoDi through the shared epoch loop, and its model folder: the EMA generator, its foot
+heights and a latent bank of sampled and inverted W codes."""
+
+from __future__ import annotations
+
+import dataclasses
+import logging
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from engine.generators.modi import save_modi
+from engine.generators.modi_latent import INVERT_STEPS, decode_codes, invert, sample_w
+from engine.latent.bank import LatentBank, build_bank
+from engine.model.modi import ModiConfig, ModiNetwork
+from engine.modelio import resolve_device, save_bank
+from engine.motion.contact import foot_joints, resting_heights
+from engine.motion.motion import Motion
+from engine.motion.skeleton import Skeleton
+from engine.train.epochs import (
+    TrainProgress,
+    TrainResult,
+    check_sizes,
+    provenance,
+    root_height,
+    split_metas,
+    steps_per_epoch,
+    train_steps,
+)
+from engine.train.modi_steps import ClipFeatures, ModiSteps
+from engine.train.pairs import split_clips
+from engine.train.windows import PreparedClips, crop_windows, prepare_clips
+
+if TYPE_CHECKING:
+    from engine.metrics.classifier import Classifier
+
+log = logging.getLogger(__name__)
+
+#: Sampled codes in a bank, beside one inverted code per clip.
+BANK_SAMPLES = 2000
+#: Clips inverted at once while building a bank.
+INVERT_BATCH = 128
+
+
+def label_samples(
+    network: ModiNetwork,
+    skeleton: Skeleton,
+    codes: np.ndarray,
+    classifier: Classifier | None,
+    inverted: np.ndarray,
+    inverted_labels: np.ndarray,
+) -> np.ndarray:
+    """(N,) action label of sampled W codes: the classifier's prediction on their motions' centre windows,
+    or without a classifier the majority label of their 5 nearest inverted clips in W."""
+    if classifier is None:
+        from sklearn.neighbors import KNeighborsClassifier
+
+        knn = KNeighborsClassifier(n_neighbors=min(5, len(inverted))).fit(inverted, inverted_labels)
+        return knn.predict(codes).astype(np.int64)
+    from engine.metrics.unconditional import classify_joints
+
+    joints, _ = decode_codes(network, codes)
+    _, predicted = classify_joints(classifier, joints, skeleton)
+    return predicted.astype(np.int64)
+
+
+def invert_clips(
+    network: ModiNetwork,
+    prepared: PreparedClips,
+    indices: np.ndarray,
+    steps: int = INVERT_STEPS,
+    space: str = "W",
+    cancel: Callable[[], bool] | None = None,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Codes and mean joint errors (m) of the canonical centre windows of clips ``indices``."""
+    codes, errors = [], []
+    for lo in range(0, len(indices), INVERT_BATCH):
+        batch = crop_windows(prepared, indices[lo : lo + INVERT_BATCH], None)
+        found = invert(network, batch.joints, batch.mask, space, steps, cancel=cancel)
+        codes.append(found.codes)
+        errors.append(found.errors)
+    return np.concatenate(codes), np.concatenate(errors)
+
+
+def modi_bank(
+    network: ModiNetwork,
+    prepared: PreparedClips,
+    val_idx: np.ndarray,
+    *,
+    classifier: Classifier | None = None,
+    n_samples: int = BANK_SAMPLES,
+    steps: int = INVERT_STEPS,
+    projections: Sequence[str] = ("pca", "tsne", "umap"),
+    k_range: tuple[int, int] = (3, 11),
+    seed: int = 0,
+    cancel: Callable[[], bool] | None = None,
+) -> LatentBank:
+    """A bank of every clip's W inversion (its own label and metadata, its inversion error) and
+    ``n_samples`` codes of the prior (labelled by ``label_samples``), with modes per label and maps."""
+    everything = np.arange(prepared.n_clips)
+    inverted, errors = invert_clips(network, prepared, everything, steps, cancel=cancel)
+    sampled = sample_w(network, n_samples, seed) if n_samples else np.zeros((0, inverted.shape[1]))
+    labels = (
+        label_samples(network, prepared.skeleton, sampled, classifier, inverted, prepared.actions)
+        if n_samples
+        else []
+    )
+    metas = [
+        m | {"origin": "inverted", "inversion_error_m": round(float(e), 4)}
+        for m, e in zip(split_metas(prepared, val_idx), errors, strict=True)
+    ]
+    metas += [{"origin": "sample", "seed": seed, "index": i} for i in range(n_samples)]
+    return build_bank(
+        np.concatenate([inverted, sampled]).astype(np.float32),
+        np.concatenate([prepared.actions, np.asarray(labels, np.int64)]),
+        np.zeros((prepared.n_clips + n_samples, 3), np.float32),
+        [*prepared.sources, *(f"sample {seed}:{i}" for i in range(n_samples))],
+        metas,
+        prepared.action_names,
+        k_range=k_range,
+        projections=tuple(projections),
+        seed=seed,
+    )
+
+
+def shipped_network(steps: ModiSteps, prepared: PreparedClips) -> ModiNetwork:
+    """The EMA generator with the training data's resting foot heights in its config (foot clean-up)."""
+    network = steps.g_ema
+    heights = resting_heights(prepared.joints, foot_joints(prepared.skeleton))
+    network.config = dataclasses.replace(network.config, foot_heights=tuple(float(h) for h in heights))
+    return network
+
+
+def train_modi(
+    clips: Sequence[Motion],
+    action_names: list[str],
+    out_dir: Path,
+    config: ModiConfig,
+    *,
+    seed: int = 0,
+    device: str = "auto",
+    resume: bool = False,
+    val_fraction: float = 0.1,
+    progress: Callable[[TrainProgress], None] | None = None,
+    cancel: Callable[[], bool] | None = None,
+    checkpoint_every: int = 1,
+    clip_features: ClipFeatures | None = None,
+    classifier: Classifier | None = None,
+    bank_samples: int = BANK_SAMPLES,
+    bank_steps: int = INVERT_STEPS,
+    bank_projections: Sequence[str] = ("pca", "tsne", "umap"),
+    bank_k_range: tuple[int, int] = (3, 11),
+) -> TrainResult:
+    """Train MoDi on ``clips`` and write its model folder ``out_dir`` (weights, model.json, train_log.csv,
+    checkpoints/last.pt, latent_bank.npz); the split, budget, ``resume`` and ``cancel`` as in
+    ``engine.train.loop.train``. ``clip_features`` skips the inverse kinematics when already computed;
+    the bank holds ``bank_samples`` prior codes and every clip inverted in W by ``bank_steps`` steps."""
+    out = Path(out_dir)
+    dev = resolve_device(device)
+    prepared = prepare_clips(clips, action_names, config.fps, config.window)
+    check_sizes(config.n_actions, config.n_joints, prepared)
+    train_idx, val_idx = split_clips(prepared.actions, val_fraction, seed)
+    steps = ModiSteps(config, prepared, train_idx, val_idx, seed=seed, device=dev, clips=clip_features)
+    run = train_steps(
+        steps,
+        out,
+        config,
+        prepared,
+        seed=seed,
+        val_fraction=val_fraction,
+        device=dev,
+        resume=resume,
+        progress=progress,
+        cancel=cancel,
+        checkpoint_every=checkpoint_every,
+    )
+    network = shipped_network(steps, prepared)
+    made = provenance(
+        prepared,
+        (train_idx, val_idx),
+        run,
+        seed=seed,
+        epochs=config.epochs,
+        device=dev,
+        arch="modi",
+        steps=int(steps.counter.steps),
+        windows_seen=config.epochs * steps_per_epoch(config) * config.batch_size,
+        train_sources=[prepared.sources[i] for i in train_idx],
+    )
+    save_modi(out, network, prepared.skeleton, prepared.action_names, made, root_height(prepared))
+    bank = modi_bank(
+        network,
+        prepared,
+        val_idx,
+        classifier=classifier,
+        n_samples=bank_samples,
+        steps=bank_steps,
+        projections=bank_projections,
+        k_range=bank_k_range,
+        seed=seed,
+        cancel=cancel,
+    )
+    save_bank(out, bank)
+    return TrainResult(
+        model_dir=out,
+        epochs=config.epochs,
+        train_losses=run.train_losses,
+        val_losses=run.val_losses,
+        windows_per_s=run.windows_per_s,
+        train_seconds=run.train_seconds,
+        n_train=len(train_idx),
+        n_val=len(val_idx),
+    )
