@@ -38,6 +38,7 @@ CAPABILITIES: dict[str, str] = {
     "edit": "edit along semantic directions",
     "mix": "mix styles",
     "truncate": "sample with truncation",
+    "crowd": "sample a crowd around a code",
     "complete": "complete a motion from a prefix",
     "extend": "extend a motion past its window",
 }

@@ -151,9 +151,9 @@ class ModiGenerator(FolderGenerator):
 
     @property
     def capabilities(self) -> frozenset[str]:
-        """Sample (with truncation), decode, interpolate, mix, invert and encode (by inversion); with the
-        bank its map and the modes of its labels."""
-        found = {"sample", "decode", "interpolate", "truncate", "mix", "invert", "encode"}
+        """Sample (with truncation), decode, interpolate, mix, crowds, invert and encode (by inversion);
+        with the bank its map and the modes of its labels."""
+        found = {"sample", "decode", "interpolate", "truncate", "mix", "crowd", "invert", "encode"}
         if self.loaded.bank is not None:
             found |= {"bank", "modes"}
         return frozenset(found)
