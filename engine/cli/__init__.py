@@ -12,7 +12,12 @@ from engine import __version__
 from engine.errors import OdmoError
 
 # Each module defines ``register(subparsers)``; a sub-command's ``func(args) -> int`` does the work.
-COMMAND_MODULES = ("engine.cli.io_commands", "engine.cli.model_commands", "engine.cli.eval_commands")
+COMMAND_MODULES = (
+    "engine.cli.io_commands",
+    "engine.cli.model_commands",
+    "engine.cli.latent_commands",
+    "engine.cli.eval_commands",
+)
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -47,7 +47,7 @@ def output_paths(out: Path, n: int, stem: str) -> list[Path]:
 
 
 @contextlib.contextmanager
-def _outputs(out: Path, n: int, stem: str) -> Iterator[list[Path]]:
+def motion_outputs(out: Path, n: int, stem: str) -> Iterator[list[Path]]:
     """Where ``n`` motions go; several files keep their folder locked for the whole command, so that a
     second writer into it fails at once instead of overwriting them."""
     paths = output_paths(out, n, stem)
@@ -58,7 +58,7 @@ def _outputs(out: Path, n: int, stem: str) -> Iterator[list[Path]]:
         yield paths
 
 
-def _write(samples: list[Sample], paths: list[Path]) -> None:
+def write_samples(samples: list[Sample], paths: list[Path]) -> None:
     from engine.motion.formats import write_motion
 
     for s, path in zip(samples, paths, strict=True):
@@ -257,13 +257,13 @@ def _cmd_sample(args: argparse.Namespace) -> int:
     request = SampleRequest(
         args.action, args.n, args.seed, args.strategy, args.mode, _end(args), truncation=args.truncation
     )
-    with _outputs(args.out, args.n, args.action or "sample") as paths:
+    with motion_outputs(args.out, args.n, args.action or "sample") as paths:
         generator = open_generator(args.model)
         if args.truncation != 1.0:
             require(generator, "truncate")
         if args.action is None and generator.action_names is not None:
             raise ConfigError(f"{args.model}: name an --action: {', '.join(generator.action_names)}")
-        _write(generator.sample(request), paths)
+        write_samples(generator.sample(request), paths)
     return 0
 
 
@@ -271,13 +271,13 @@ def _cmd_interpolate(args: argparse.Namespace) -> int:
     from engine.generators import open_generator, require
 
     check_count("--steps", args.steps)
-    with _outputs(args.out, args.steps, f"{args.action or 'code'}_{args.from_}_{args.to}") as paths:
+    with motion_outputs(args.out, args.steps, f"{args.action or 'code'}_{args.from_}_{args.to}") as paths:
         generator = open_generator(args.model)
         require(generator, "interpolate")
         if args.action is None and generator.action_names is not None:
             raise ConfigError(f"{args.model}: name an --action: {', '.join(generator.action_names)}")
         a, b = (endpoint_code(generator, text, args.action) for text in (args.from_, args.to))
-        _write(generator.interpolate(a, b, args.action, args.steps, method=args.method), paths)
+        write_samples(generator.interpolate(a, b, args.action, args.steps, method=args.method), paths)
     return 0
 
 

@@ -174,12 +174,12 @@ class A2mGenerator(FolderGenerator):
 
     @property
     def capabilities(self) -> frozenset[str]:
-        """Sample; with a code space decode, encode, interpolate; with a bank also the map and modes."""
+        """Sample; with a code space decode, encode, interpolate; with a bank also the map, modes, edits."""
         found = {"sample"}
         if _has_code_space(self.loaded):
             found |= {"decode", "encode", "interpolate"}
             if self.loaded.bank is not None:
-                found |= {"bank", "modes"}
+                found |= {"bank", "modes", "edit"}
         return frozenset(found)
 
     def _samples(

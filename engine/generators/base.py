@@ -8,6 +8,7 @@ refused with one line saying what the model can do instead.
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -20,8 +21,14 @@ from engine.errors import ConfigError, ModelFormatError
 if TYPE_CHECKING:
     from engine.generate import Sample, WindowCodes
     from engine.latent.bank import LatentBank
+    from engine.latent.directions import EditDirection
     from engine.motion.motion import Motion
     from engine.motion.skeleton import Skeleton
+
+#: Metadata keys of bank codes that get an edit direction per value.
+EDIT_KEYS = ("style",)
+#: Bank codes decoded at once while fitting edit directions.
+DIRECTION_BATCH = 512
 
 #: Every capability a kind may declare, with what it lets a user do (used in refusals and tooltips).
 CAPABILITIES: dict[str, str] = {
@@ -76,7 +83,8 @@ class SampleRequest:
 
 
 class FolderGenerator:
-    """What every kind reads from its loaded folder ``loaded``: path, skeleton, fps, window, actions."""
+    """What every kind reads from its loaded folder ``loaded``: path, skeleton, fps, window, actions; and
+    the edit directions of its bank."""
 
     loaded: Any
 
@@ -146,6 +154,39 @@ class FolderGenerator:
             owners = np.concatenate([np.full(len(r.codes), k) for k, r in enumerate(rows)])
             starts = np.concatenate([r.starts for r in rows])
         return codes, np.zeros((len(codes), 3), np.float32), owners.astype(np.int64), starts
+
+    @functools.cached_property
+    def edit_directions(self) -> dict[str, EditDirection]:
+        """Directions of the bank's metadata labels (``EDIT_KEYS``) and of its codes' motions' speed (root,
+        m/s) and energy (mean joint speed), fitted once ("edit")."""
+        from engine.latent.directions import fit_directions
+        from engine.motion.ops import motion_energy
+
+        require(self, "edit")
+        bank = self.bank
+        joints = np.zeros((len(bank.codes), self.window, self.skeleton.n_joints, 3), np.float32)
+        for a in np.unique(bank.actions):
+            rows = np.flatnonzero(bank.actions == a)
+            for lo in range(0, len(rows), DIRECTION_BATCH):
+                part = rows[lo : lo + DIRECTION_BATCH]
+                motions = self.decode(bank.codes[part], self.label_names[int(a)])
+                joints[part] = [m.joints for m in motions]
+        root = joints[:, :, self.skeleton.root][:, :, [0, 2]]
+        speed = np.linalg.norm(np.diff(root, axis=1), axis=-1).mean(axis=1) * self.fps
+        attributes = {"speed": speed, "energy": motion_energy(joints, self.fps)}
+        return fit_directions(bank.codes, bank.meta, EDIT_KEYS, attributes)
+
+    def edit(self, code: np.ndarray, action: str | None, direction: str, amount: float) -> Sample:
+        """The motion of ``code`` moved ``amount`` spreads along the named edit direction ("edit")."""
+        from engine.generate import Sample
+
+        found = self.edit_directions
+        if direction not in found:
+            raise ConfigError(f"{self.path}: no edit direction {direction!r}; it has {', '.join(found)}")
+        edited = found[direction].apply(np.asarray(code, np.float32).reshape(-1), amount)
+        [motion] = self.decode(edited[None], action)
+        index = -1 if action is None else self.label_names.index(action)
+        return Sample(edited, index, -1, None, motion)
 
     def encode_windows(self, motion: Motion, stride: int) -> WindowCodes:
         """``motion``'s T-frame windows every ``stride`` frames, each encoded ("encode")."""

@@ -152,10 +152,10 @@ class ModiGenerator(FolderGenerator):
     @property
     def capabilities(self) -> frozenset[str]:
         """Sample (with truncation), decode, interpolate, mix, crowds, invert and encode (by inversion);
-        with the bank its map and the modes of its labels."""
+        with the bank its map, the modes of its labels and edit directions."""
         found = {"sample", "decode", "interpolate", "truncate", "mix", "crowd", "invert", "encode"}
         if self.loaded.bank is not None:
-            found |= {"bank", "modes"}
+            found |= {"bank", "modes", "edit"}
         return frozenset(found)
 
     def _samples(

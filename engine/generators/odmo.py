@@ -17,7 +17,7 @@ from engine.modelio import LoadedModel, load_model
 from engine.motion.motion import Motion
 
 _ALWAYS = frozenset({"decode", "interpolate", "interpolate_across", "encode", "follow_path", "bank"})
-_WITH_BANK = frozenset({"sample", "modes"})
+_WITH_BANK = frozenset({"sample", "modes", "edit"})
 
 
 @dataclass(eq=False)
@@ -39,7 +39,7 @@ class OdmoGenerator(FolderGenerator):
 
     @property
     def capabilities(self) -> frozenset[str]:
-        """Decode, interpolate, encode, follow paths and build a bank; sampling from modes needs the
+        """Decode, interpolate, encode, follow paths and build a bank; sampling from modes and edits need the
         bank; end locations need the model to take them."""
         found = _ALWAYS | (_WITH_BANK if self.loaded.bank is not None else frozenset())
         return found | ({"end"} if self.loaded.config.use_end_location else frozenset())
