@@ -16,6 +16,14 @@ TOOLS: dict[str, str] = {
     "fit_mode_action": "decode",
     "export_selection_action": "decode",
     "trajectory": "end",
+    "invert_action": "invert",
+}
+#: latent-tools panel box -> the capability it needs
+PANEL_TOOLS: dict[str, str] = {
+    "truncate_box": "truncate",
+    "mix_box": "mix",
+    "crowd_box": "crowd",
+    "invert_box": "invert",
 }
 
 
@@ -23,6 +31,7 @@ def tool_widgets(window: MainWindow) -> dict[str, object]:
     """Every gated tool of ``window`` by its attribute name (menu actions and widgets)."""
     found = {name: getattr(window, name) for name in TOOLS}
     found["sample_button"] = window.mode_panel.sample_button
+    found |= {name: getattr(window.latent_panel, name) for name in PANEL_TOOLS}
     return found
 
 
@@ -33,7 +42,7 @@ def gate_tools(window: MainWindow, generator: Generator) -> dict[str, str]:
     """
     from engine.generators.base import refusal
 
-    needs = TOOLS | {"sample_button": "sample"}
+    needs = TOOLS | PANEL_TOOLS | {"sample_button": "sample"}
     off = {}
     for name, tool in tool_widgets(window).items():
         capability = needs[name]

@@ -2,7 +2,8 @@
 widget signals and state events to the parts that act on them.
 
 The parts, one concern each: ``MapPresenter`` (the map), ``Gestures`` (clicks, drags, lasso, selection),
-``Generation`` (samples, variations, local mode, end location, paths) and ``Playback`` (the only writer
+``Generation`` (samples, variations, local mode, end location, paths), ``LatentTools`` (truncation,
+style mixing, crowds, inversion) and ``Playback`` (the only writer
 to the 3-D view, timeline and trajectory canvas); exports, search and clip encoding have theirs. Torch,
 scikit-learn and scipy are imported where they are used: the window and the map's preview come up before
 the model is loaded, and the model-loading task brings them in off the GUI thread.
@@ -58,6 +59,7 @@ class Controller(QObject):
         from explorer.encoding import ClipEncoder
         from explorer.exporting import Exporter
         from explorer.finding import Finder
+        from explorer.latent_tools import LatentTools
         from explorer.loading import Loader
 
         self.loader = Loader(self)
@@ -70,6 +72,7 @@ class Controller(QObject):
         self.exporter = Exporter(self)
         self.finder = Finder(self)
         self.encoder = ClipEncoder(self)
+        self.latent = LatentTools(self)
         self.state.events.embedding.connect(lambda _e: self.encoder.show())
 
     def _connect(self) -> None:

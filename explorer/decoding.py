@@ -19,10 +19,23 @@ def decode_one(
     rows = None
     if end is not None and "end" in generator.capabilities:
         rows = np.array(end, dtype=np.float32).reshape(1, -1)
-    [motion] = generator.decode(np.array(code, dtype=np.float32)[None], generator.action_names[action], rows)
+    [motion] = generator.decode(np.array(code, dtype=np.float32)[None], condition(generator, action), rows)
     if mode is not None:
         motion.meta["mode"] = int(mode)
     return motion
+
+
+def condition(generator: Generator, action: int) -> str | None:
+    """The action a conditional kind decodes label index ``action`` as; None for an unconditional kind."""
+    names = generator.action_names
+    return None if names is None else names[action]
+
+
+def map_codes(generator: Generator, codes: np.ndarray) -> np.ndarray:
+    """(N, D) points of ``codes`` in the space the map projects: a kind with several code spaces (MoDi's
+    W+) gives each code's point in the bank's space."""
+    as_w = getattr(generator, "as_w", None)
+    return np.asarray(codes, dtype=np.float32) if as_w is None else as_w(codes)
 
 
 def full_end(

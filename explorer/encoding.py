@@ -16,6 +16,7 @@ from PySide6.QtCore import QObject
 from PySide6.QtWidgets import QFileDialog
 
 from engine.errors import OdmoError
+from explorer.decoding import map_codes
 from explorer.state import Decoded, ExtraPoints
 
 if TYPE_CHECKING:
@@ -43,12 +44,20 @@ class ClipEncoder(QObject):
         self.c = controller
         self.clips: list[EncodedClip] = []
         controller.window.encode_action.triggered.connect(self.ask)
-        controller.window.latent_map.filesDropped.connect(self.encode_files)
+        controller.window.latent_map.filesDropped.connect(self.dropped)
 
     def ask(self) -> None:
         """Ask for motion files and encode them."""
         paths, _ = QFileDialog.getOpenFileNames(self.c.window, "Encode clips", "", MOTION_FILTER)
         if paths:
+            self.encode_files(paths)
+
+    def dropped(self, paths: list[str]) -> None:
+        """Files dropped on the map: inverted where the loaded kind inverts by optimisation, else encoded."""
+        if self.c.can("invert"):
+            panel = self.c.window.latent_panel
+            self.c.latent.invert_files(paths, panel.space_combo.currentText(), panel.steps_spin.value())
+        else:
             self.encode_files(paths)
 
     def encode_files(self, paths: list[str]) -> None:
@@ -92,7 +101,7 @@ class ClipEncoder(QObject):
         shown = first.decoded[:MAX_PLAYED_WINDOWS]
         self.c.state.shown = tuple(shown)
         windows = sum(len(clip.windows.starts) for clip in done)
-        names = self.c.generator.action_names
+        names = self.c.generator.label_names
         guesses = np.concatenate([clip.windows.actions for clip in done])
         tally = np.bincount(guesses[guesses >= 0], minlength=len(names))
         counts = ", ".join(f"{names[a]} ×{n}" for a, n in enumerate(tally) if n)
@@ -111,7 +120,7 @@ class ClipEncoder(QObject):
             return
         codes = np.concatenate([clip.windows.codes for clip in self.clips]).astype(np.float32)
         actions = np.concatenate([np.maximum(clip.windows.actions, 0) for clip in self.clips])
-        xy = projection.transform(codes)
+        xy = projection.transform(map_codes(self.c.generator, codes))
         self.c.state.extra = ExtraPoints(codes, actions, xy)
         paths, start = [], 0
         for clip in self.clips:

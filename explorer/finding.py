@@ -14,6 +14,7 @@ from PySide6.QtCore import QObject
 
 from engine.errors import OdmoError
 from explorer.bookmarks import Bookmark, load_bookmarks, new_bookmark, save_bookmarks
+from explorer.decoding import map_codes
 from explorer.state import Decoded
 
 if TYPE_CHECKING:
@@ -97,7 +98,8 @@ class Finder(QObject):
         from engine.latent.neighbours import nearest
 
         bank = self.c.bank
-        idx, dist = nearest(bank.codes, item.code, NEIGHBOURS, exclude=item.bank_index)
+        query = map_codes(self.c.generator, item.code[None])[0]  # a W+ code is looked up at its W point
+        idx, dist = nearest(bank.codes, query, NEIGHBOURS, exclude=item.bank_index)
         what = f"#{item.bank_index}" if item.bank_index is not None else "the code playing"
         title = f"Nearest to {what} in the full {bank.codes.shape[1]}-D latent space"
         rows = [

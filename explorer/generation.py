@@ -8,6 +8,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from engine.motion.ops import root_floor_path
+from explorer.decoding import condition, map_codes
 from explorer.state import Decoded, ExtraPoints
 from explorer.workers import Cancel, Progress
 
@@ -19,6 +20,7 @@ if TYPE_CHECKING:
 VARIATIONS = 8
 LOCAL_MODE_SAMPLES = 6
 PANEL_STRATEGIES = {"one_mode": "mode"}  # mode panel key -> engine strategy
+UNCONDITIONAL_STRATEGIES = ("prior", "mode_preserving", "conventional", "one_mode")  # of a labelled bank
 
 
 class Generation:
@@ -38,11 +40,11 @@ class Generation:
             return
         centre, action, radius = summary
         loaded, seed = self.c.generator, self.c.new_seed()
-        name = loaded.action_names[action]
+        name = condition(loaded, action)
         self.c.run_task(
             "Sampling variations",
             lambda _p, _c: loaded.vary(centre, name, VARIATIONS, radius, seed),
-            lambda samples: self._samples_ready(samples, seed, "variation"),
+            lambda samples: self.show_samples(samples, seed, "variation"),
         )
 
     def fit_local_mode(self) -> None:
@@ -63,17 +65,18 @@ class Generation:
 
         def job(_p: Progress, _c: Cancel) -> list[generate.Sample]:
             codes, _ = local.sample(LOCAL_MODE_SAMPLES, np.random.default_rng(seed), strategy="mode", mode=0)
-            motions = loaded.decode(codes, loaded.action_names[action])
+            motions = loaded.decode(codes, condition(loaded, action))
             ends = bank.end_location(codes, action) if with_end else [None] * len(codes)
             return [
                 generate.Sample(c.astype(np.float32), action, -1, e, m)
                 for c, e, m in zip(codes, ends, motions, strict=True)
             ]
 
-        self.c.run_task("Sampling the local mode", job, lambda s: self._samples_ready(s, seed, "local mode"))
+        self.c.run_task("Sampling the local mode", job, lambda s: self.show_samples(s, seed, "local mode"))
 
     def sample(self, strategy: str, n: int, mode: int) -> None:
-        """Draw ``n`` samples of the focused action (mode panel's Sample buttons) and show them."""
+        """Draw ``n`` samples of the focused action (mode panel's Sample buttons; an unconditional kind's
+        "prior" strategy takes none) at the truncation ψ of the state, and show them."""
         if self.c.state.model is None or self.c.refuse("sample"):
             return
         loaded, action, seed = self.c.generator, self.c.state.focus_action, self.c.new_seed()
@@ -82,40 +85,43 @@ class Generation:
         from engine.generators.base import SampleRequest
 
         request = SampleRequest(
-            loaded.action_names[action],
+            None if strategy == "prior" else loaded.label_names[action],
             int(n),
             seed,
             strategy,
             None if mode < 0 else int(mode),
             weights=None if weights is None else tuple(float(w) for w in weights),
+            truncation=self.c.state.truncation if self.c.can("truncate") else 1.0,
         )
 
         def job(_p: Progress, _c: Cancel) -> list[generate.Sample]:
             return loaded.sample(request)
 
+        psi = f" at ψ {request.truncation:g}" if request.truncation != 1.0 else ""
         self.c.run_task(
-            f"Sampling {n} × {loaded.action_names[action]}",
+            f"Sampling {n} × {request.action or 'any action'}{psi}",
             job,
-            lambda s: self._samples_ready(s, seed, strategy.replace("_", "-")),
+            lambda s: self.show_samples(s, seed, strategy.replace("_", "-")),
         )
 
-    def _samples_ready(self, samples: list[generate.Sample], seed: int, what: str) -> None:
+    def show_samples(self, samples: list[generate.Sample], seed: int, what: str) -> None:
+        """Put ``samples`` on the map as marked points and play them, labelled ``what`` and numbered."""
         if not samples:
             return
         codes = np.stack([s.code for s in samples]).astype(np.float32)
-        actions = np.array([s.action for s in samples], dtype=np.int64)
-        xy = (
-            self.c.projection.transform(codes) if self.c.projection is not None else np.zeros((len(codes), 2))
-        )
+        actions = np.array([max(s.action, 0) for s in samples], dtype=np.int64)
+        projection = self.c.projection
+        points = map_codes(self.c.generator, codes)
+        xy = projection.transform(points) if projection is not None else np.zeros((len(codes), 2))
         self.c.state.extra = ExtraPoints(codes, actions, xy)
-        names = self.c.generator.action_names
+        names = self.c.generator.label_names
         self.c.state.shown = tuple(
             Decoded(
                 s.motion,
-                f"{what} {k + 1}/{len(samples)} {names[s.action]}"
+                f"{what} {k + 1}/{len(samples)} {names[s.action] if s.action >= 0 else ''}".rstrip()
                 + (f" mode {s.mode}" if s.mode >= 0 else ""),
                 s.code,
-                s.action,
+                max(s.action, 0),
                 s.end,
                 s.mode if s.mode >= 0 else None,
                 seed,

@@ -52,7 +52,9 @@ class Gestures:
             return
         self.c.state.marker = None
         code, action = extra.codes[k].copy(), int(extra.actions[k])
-        self.decode_code(code, action, f"marked point {k + 1}/{len(extra.codes)}")
+        label = f"marked point {k + 1}/{len(extra.codes)}"
+        self.c.state.pick(code, label)
+        self.decode_code(code, action, label)
 
     def click_point(self, index: int) -> None:
         """Select bank code ``index``, decode it (with the real clip beside it when data is loaded), play."""
@@ -61,6 +63,7 @@ class Gestures:
         self.c.state.selection = (int(index),)
         self.c.state.marker = None
         self.c.state.extra = None  # the samples' diamonds belong to the samples, which no longer play
+        self.c.state.pick(self.c.bank.codes[index], f"#{index} {self.c.bank.sources[index]}")
         self._decode_bank([int(index)], with_real=True)
 
     def _decode_bank(self, indices: Sequence[int], with_real: bool = False, note: str = "") -> None:
@@ -89,10 +92,12 @@ class Gestures:
 
     def _decode_at(self, xy: np.ndarray, mark: bool) -> None:
         code, action = self._code_at(xy)
+        label = f"map point ({xy[0]:.2f}, {xy[1]:.2f})"
         if mark:
             self.c.state.selection = ()
             self.c.state.marker = xy.astype(np.float64)
-        self.decode_code(code, action, f"map point ({xy[0]:.2f}, {xy[1]:.2f})")
+            self.c.state.pick(code, label)
+        self.decode_code(code, action, label)
 
     def decode_code(
         self,
@@ -187,7 +192,7 @@ class Gestures:
         Between two actions (``action_b`` given and different) the engine's cross-action rule is used
         and the status bar says so: each step is decoded as the likelier of the two actions.
         """
-        across = action_b is not None and action_b != action
+        across = action_b is not None and action_b != action and self.c.generator.action_names is not None
         if self.c.refuse("interpolate_across" if across else "interpolate"):
             return
         request = StripDecode(

@@ -12,7 +12,8 @@ from PySide6.QtWidgets import QFileDialog
 
 from engine.errors import ModelFormatError, OdmoError
 from engine.motion.motion import Motion
-from explorer.capabilities import gate_tools
+from explorer.capabilities import PANEL_TOOLS, gate_tools
+from explorer.generation import UNCONDITIONAL_STRATEGIES
 from explorer.map_layers import META_PREFIX, category_colors, meta_keys, tooltip_texts
 from explorer.model_menu import fill_model_menus, remember_model
 from explorer.preview import BankPreview, read_preview
@@ -156,14 +157,17 @@ class Loader:
         if loaded is None:
             return
         bank = loaded.bank
-        names = list(loaded.action_names)
+        names = list(loaded.label_names)
         w.action_combo.blockSignals(True)
         w.action_combo.clear()
         w.action_combo.addItems(names)
         w.action_combo.setCurrentIndex(0)
         w.action_combo.blockSignals(False)
         self._fill_color_combo(bank)
+        w.mode_panel.set_strategies(UNCONDITIONAL_STRATEGIES if loaded.action_names is None else None)
         gate_tools(w, loaded)
+        if set(PANEL_TOOLS.values()) & loaded.capabilities:
+            w.latent_dock.raise_()
         w.viewport.set_skeletons(loaded.skeleton.parents, 1)
         self.c.playback.rig = None
         self.c.state.focus_action = 0
@@ -173,7 +177,8 @@ class Loader:
         self.c.map.focus_changed(self.c.state.focus_action)
         w.setWindowTitle(f"ODMO Explorer — {loaded.path.name}")
         w.show_status(
-            f"Model {loaded.path.name}: {len(bank.codes)} bank codes, {len(names)} actions, "
+            f"Model {loaded.path.name}: {len(bank.codes)} bank codes, {len(names)} actions"
+            f"{' (labels: the model is unconditional)' if loaded.action_names is None else ''}, "
             f"{loaded.kind} codes {loaded.code_space.name} of size {loaded.code_space.size}. "
             "Click a point to decode it."
         )

@@ -26,6 +26,7 @@ from PySide6.QtWidgets import (
 from explorer.window_actions import build_menus, build_toolbar
 from widgets.find_panel import FindPanel
 from widgets.latent_map import LatentMap
+from widgets.latent_tools import LatentToolsPanel
 from widgets.mode_panel import ModePanel
 from widgets.timeline import Timeline
 from widgets.trajectory_canvas import TrajectoryCanvas
@@ -35,7 +36,7 @@ if TYPE_CHECKING:
 
 SETTINGS_GEOMETRY = "window/geometry"
 SETTINGS_STATE = "window/state"
-_LAYOUT_VERSION = 2  # 2: the Find panel
+_LAYOUT_VERSION = 3  # 2: the Find panel; 3: the latent tools
 
 
 class MainWindow(QMainWindow):
@@ -68,6 +69,7 @@ class MainWindow(QMainWindow):
         self.mode_panel = ModePanel()
         self.trajectory = TrajectoryCanvas()
         self.find_panel = FindPanel()
+        self.latent_panel = LatentToolsPanel()
         self.setCentralWidget(self.latent_map)
 
         self.viewport_dock = self._dock(
@@ -79,8 +81,11 @@ class MainWindow(QMainWindow):
             "Trajectory (top view)", "dock_trajectory", self.trajectory, Qt.LeftDockWidgetArea
         )
         self.find_dock = self._dock("Find", "dock_find", self.find_panel, Qt.LeftDockWidgetArea)
+        self.latent_dock = self._dock("Latent tools", "dock_latent", self.latent_panel, Qt.LeftDockWidgetArea)
         self.splitDockWidget(self.mode_dock, self.trajectory_dock, Qt.Vertical)
         self.tabifyDockWidget(self.mode_dock, self.find_dock)
+        self.tabifyDockWidget(self.trajectory_dock, self.latent_dock)
+        self.trajectory_dock.raise_()
         self.mode_dock.raise_()
         self.resizeDocks([self.viewport_dock], [560], Qt.Horizontal)
         self.resizeDocks([self.mode_dock], [330], Qt.Horizontal)
@@ -109,7 +114,14 @@ class MainWindow(QMainWindow):
 
     def docks(self) -> tuple[QDockWidget, ...]:
         """Every dock panel of the window."""
-        return (self.viewport_dock, self.timeline_dock, self.mode_dock, self.find_dock, self.trajectory_dock)
+        return (
+            self.viewport_dock,
+            self.timeline_dock,
+            self.mode_dock,
+            self.find_dock,
+            self.trajectory_dock,
+            self.latent_dock,
+        )
 
     def has_viewport(self) -> bool:
         """True once the 3-D viewport exists."""
@@ -207,13 +219,7 @@ class MainWindow(QMainWindow):
     def reset_layout(self) -> None:
         """Put every panel back where it starts."""
         self.restoreState(self._default_state, _LAYOUT_VERSION)
-        for dock in (
-            self.viewport_dock,
-            self.timeline_dock,
-            self.mode_dock,
-            self.find_dock,
-            self.trajectory_dock,
-        ):
+        for dock in self.docks():
             dock.show()
 
     def closeEvent(self, event: QCloseEvent) -> None:  # noqa: N802

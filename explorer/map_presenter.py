@@ -7,6 +7,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from explorer.decoding import condition, map_codes
 from explorer.map_layers import (
     category_colors,
     color_key,
@@ -129,7 +130,7 @@ class MapPresenter:
                         return energy
                     part = idx[start : start + chunk]
                     ends = bank.ends[part].copy() if with_end else None
-                    motions = loaded.decode(bank.codes[part].copy(), bank.action_names[action], ends)
+                    motions = loaded.decode(bank.codes[part].copy(), condition(loaded, action), ends)
                     energy[part] = motion_energy(np.stack([m.joints for m in motions]), loaded.fps)
                     done += len(part)
                     progress("Decoding bank codes for motion energy", done / len(bank.codes))
@@ -175,13 +176,14 @@ class MapPresenter:
         if extra is None:
             self.c.window.latent_map.set_extra_points(None)
             return
-        colors = category_colors(len(self.c.generator.action_names))[extra.actions]
+        colors = category_colors(len(self.c.generator.label_names))[extra.actions]
         self.c.window.latent_map.set_extra_points(extra.xy, colors)
 
     def _reproject_extra(self) -> None:
         extra, projection = self.c.state.extra, self.c.projection
         if extra is not None and projection is not None:
-            self.c.state.extra = ExtraPoints(extra.codes, extra.actions, projection.transform(extra.codes))
+            xy = projection.transform(map_codes(self.c.generator, extra.codes))
+            self.c.state.extra = ExtraPoints(extra.codes, extra.actions, xy)
 
     def focus_changed(self, action: int) -> None:
         w = self.c.window
@@ -190,7 +192,7 @@ class MapPresenter:
         if self.c.state.model is None:
             return
         modes = self.c.bank.modes.get(action)
-        name = self.c.generator.action_names[action]
+        name = self.c.generator.label_names[action]
         note = mode_note(modes, len(self.c.bank.indices_of(action)))
         if modes is None:
             w.mode_panel.set_action_modes(name, [], [], 0, [], [], note)

@@ -49,7 +49,7 @@ class Playback:
         if not shown:
             return
         loaded = self.c.generator
-        scene = build_scene(shown, self.c.state.layout, loaded.root_height, loaded.action_names)
+        scene = build_scene(shown, self.c.state.layout, loaded.root_height, loaded.label_names)
         played = scene.played
         self.played = played
         live = self.c.gestures.drag_from is not None
@@ -58,7 +58,7 @@ class Playback:
             self.rig, live = rig, False
             w.viewport.set_skeletons(played[0].skeleton.parents, len(played))
             w.viewport.set_layout("overlay" if self.c.state.layout == "overlay" else "side_by_side", 1.0)
-        w.viewport.set_colors(_skeleton_colors(shown, len(played), len(loaded.action_names)))
+        w.viewport.set_colors(_skeleton_colors(shown, len(played), len(loaded.label_names)))
         lead = w.viewport.offsets[0]  # the end marker and root path belong to the first skeleton
         w.viewport.set_end_marker(None if scene.end is None else scene.end + lead)
         w.viewport.set_labels(scene.labels if w.labels_action.isChecked() else None)

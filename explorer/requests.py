@@ -11,7 +11,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from explorer.decoding import decode_one, full_end
+from explorer.decoding import condition, decode_one, full_end, map_codes
 from explorer.map_layers import mode_labels
 from explorer.state import Decoded
 
@@ -83,7 +83,7 @@ class CodeDecode:
         code = np.asarray(code, dtype=np.float32)
         end = full_end(self.generator, code, self.action, self.end)
         modes = self.bank.modes.get(self.action)
-        mode = None if modes is None else int(modes.predict(code[None])[0])
+        mode = None if modes is None else int(modes.predict(map_codes(self.generator, code[None]))[0])
         motion = decode_one(self.generator, code, self.action, end, mode)
         return (Decoded(motion, self.label, code, self.action, end, mode),)
 
@@ -107,18 +107,18 @@ class StripDecode:
         """The strip's motions, each labelled with its step and the action it was decoded as."""
         from engine import generate
 
-        g, names, steps = self.generator, self.generator.action_names, self.steps
+        g, names, steps = self.generator, self.generator.label_names, self.steps
         ends = {} if self.end_a is None else {"end_a": self.end_a, "end_b": self.end_b}
-        a, b = names[self.action_a], names[self.action_b]
+        a, b = condition(g, self.action_a), condition(g, self.action_b)
         if a != b:
             samples = g.interpolate_across(self.code_a, a, self.code_b, b, steps, **ends)
-        else:
+        else:  # one action, or an unconditional kind (its codes' labels are not a condition)
             samples = g.interpolate(self.code_a, self.code_b, a, steps, **ends)
         note = f"{a} → {b}: {generate.ACROSS_RULE}" if a != b else ""
         return tuple(
             Decoded(
                 s.motion,
-                f"{self.what} step {k + 1}/{steps} {names[s.action]}",
+                f"{self.what} step {k + 1}/{steps} {names[s.action] if s.action >= 0 else ''}".rstrip(),
                 s.code,
                 s.action,
                 s.end,
@@ -127,3 +127,35 @@ class StripDecode:
             )
             for k, s in enumerate(samples)
         )
+
+
+def label_index(generator: Generator, motion: Motion) -> int:
+    """Index in ``generator.label_names`` of the label a decoded ``motion`` carries (0 when it has none)."""
+    names = generator.label_names
+    return names.index(motion.action) if motion.action in names else 0
+
+
+@dataclass(frozen=True, eq=False)
+class MixDecode:
+    """The motion taking ``code_a``'s coarse levels (below ``split``) and ``code_b``'s fine ones, shown
+    before the motions of A and B."""
+
+    generator: Generator
+    code_a: np.ndarray
+    code_b: np.ndarray
+    split: int
+    label_a: str
+    label_b: str
+
+    def run(self) -> tuple[Decoded, ...]:
+        """The mixed motion (its W+ code), then A's and B's."""
+        g = self.generator
+        mixed = g.mix(self.code_a.copy(), self.code_b.copy(), self.split)  # (torch takes no read-only arrays)
+        note = f"levels 0..{self.split - 1} from A, the rest from B" if self.split else "every level from B"
+        items = [
+            Decoded(mixed.motion, f"mix A|B @ {self.split}", mixed.code, max(mixed.action, 0), note=note)
+        ]
+        for code, label in ((self.code_a, self.label_a), (self.code_b, self.label_b)):
+            [motion] = g.decode(np.array(code, np.float32)[None], None)
+            items.append(Decoded(motion, label, code, label_index(g, motion)))
+        return tuple(items)

@@ -77,6 +77,14 @@ class ExtraPoints:
     xy: np.ndarray
 
 
+@dataclass(frozen=True, eq=False)
+class Pick:
+    """A code the user picked (clicked on the map, or an inverted clip): ``code`` (D,) and its label."""
+
+    code: np.ndarray
+    label: str
+
+
 @evented(equality_operators={"model": operator.is_, "embedding": operator.is_, "marker": operator.is_})
 @dataclass
 class AppState:
@@ -98,6 +106,8 @@ class AppState:
     layout : "side_by_side" or "overlay".
     frame : current frame of the timeline.
     busy : text of the long task in progress ("" when idle).
+    truncation : ψ that sampling pulls codes towards the mean code with (1: none), for kinds that truncate.
+    picked : the last two picked codes, older first (style mixing takes the older's coarse levels).
     """
 
     model: Generator | None = None
@@ -114,3 +124,11 @@ class AppState:
     layout: str = "side_by_side"
     frame: int = 0
     busy: str = ""
+    truncation: float = 1.0
+    picked: tuple[Pick, ...] = ()
+
+    def pick(self, code: np.ndarray, label: str) -> None:
+        """Remember ``code`` (copied, read-only) as the newest picked code, keeping the one before it."""
+        frozen = np.array(code, dtype=np.float32)
+        frozen.flags.writeable = False
+        self.picked = (*self.picked[-1:], Pick(frozen, label))

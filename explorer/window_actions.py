@@ -78,6 +78,7 @@ def build_menus(window: MainWindow) -> None:
     window.bundled_menu = file_menu.addMenu("&Bundled models")
     window.open_data_action = file_menu.addAction("Open &dataset folder…")
     window.encode_action = file_menu.addAction("E&ncode clips… (or drop files on the map)")
+    window.invert_action = file_menu.addAction("&Invert clips… (by optimisation)")
     file_menu.addSeparator()
     window.export_motion_action = file_menu.addAction("&Export shown motion(s) (BVH / NPZ)…")
     window.export_motion_action.setShortcut(QKeySequence("Ctrl+E"))
@@ -103,13 +104,7 @@ def build_menus(window: MainWindow) -> None:
     window.clear_selection_action.setShortcut(QKeySequence(Qt.Key_Escape))
 
     view = window.menuBar().addMenu("&View")
-    for dock in (
-        window.viewport_dock,
-        window.timeline_dock,
-        window.mode_dock,
-        window.find_dock,
-        window.trajectory_dock,
-    ):
+    for dock in window.docks():
         view.addAction(dock.toggleViewAction())
     view.addSeparator()
     window.reset_camera_action = view.addAction("Reset &camera")

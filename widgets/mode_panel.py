@@ -28,6 +28,7 @@ STRATEGIES: tuple[tuple[str, str], ...] = (
     ("one_mode", "One mode"),
     ("weights", "Slider weights"),
 )
+PRIOR = ("prior", "Prior (any action)")  # an unconditional generator's own sampling
 _SLIDER_STEPS = 100
 
 
@@ -69,8 +70,6 @@ class ModePanel(QWidget):
         self._sliders: list[QSlider] = []
 
         self.strategy_box = QComboBox()
-        for key, label in STRATEGIES:
-            self.strategy_box.addItem(label, key)
         self.strategy_box.currentIndexChanged.connect(self._strategy_changed)
         self.n_box = QSpinBox(minimum=1, maximum=10_000, value=10)
         self.mode_box = QSpinBox(minimum=0, maximum=0)
@@ -94,7 +93,7 @@ class ModePanel(QWidget):
         layout.addWidget(self._modes_box)
         layout.addLayout(form)
         layout.addLayout(buttons)
-        self._strategy_changed()
+        self.set_strategies(None)
 
     def set_action_modes(
         self,
@@ -133,6 +132,21 @@ class ModePanel(QWidget):
             plot.setRange(xRange=(1, 12), yRange=(0, 1), padding=0)
         self._rebuild_modes(sizes, weights)
         self.mode_box.setMaximum(max(kept - 1, 0))
+        self._strategy_changed()
+
+    def set_strategies(self, keys: Sequence[str] | None) -> None:
+        """Offer the sampling strategies ``keys`` (of ``STRATEGIES`` and ``PRIOR``), the first selected;
+        None offers ``STRATEGIES``."""
+        known = dict((PRIOR, *STRATEGIES))
+        keys = [key for key, _ in STRATEGIES] if keys is None else list(keys)
+        if unknown := [k for k in keys if k not in known]:
+            raise ValueError(f"unknown sampling strategies {unknown}")
+        self.strategy_box.blockSignals(True)
+        self.strategy_box.clear()
+        for key in keys:
+            self.strategy_box.addItem(known[key], key)
+        self.strategy_box.setCurrentIndex(0)
+        self.strategy_box.blockSignals(False)
         self._strategy_changed()
 
     def weights(self) -> np.ndarray:
