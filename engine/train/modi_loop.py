@@ -66,6 +66,15 @@ def label_samples(
     return predicted.astype(np.int64)
 
 
+def inverted_clips(labels: np.ndarray, per_label: int | None, seed: int) -> np.ndarray:
+    """Indices of the clips a bank inverts: all, or up to ``per_label`` of each label drawn with ``seed``."""
+    if per_label is None:
+        return np.arange(len(labels))
+    rng = np.random.default_rng(seed)
+    picks = [rng.permutation(np.flatnonzero(labels == a))[:per_label] for a in np.unique(labels)]
+    return np.sort(np.concatenate(picks))
+
+
 def invert_clips(
     network: ModiNetwork,
     prepared: PreparedClips,
@@ -91,32 +100,36 @@ def modi_bank(
     *,
     classifier: Classifier | None = None,
     n_samples: int = BANK_SAMPLES,
+    per_label: int | None = None,
     steps: int = INVERT_STEPS,
     projections: Sequence[str] = ("pca", "tsne", "umap"),
     k_range: tuple[int, int] = (3, 11),
     seed: int = 0,
     cancel: Callable[[], bool] | None = None,
 ) -> LatentBank:
-    """A bank of every clip's W inversion (its own label and metadata, its inversion error) and
-    ``n_samples`` codes of the prior (labelled by ``label_samples``), with modes per label and maps."""
-    everything = np.arange(prepared.n_clips)
-    inverted, errors = invert_clips(network, prepared, everything, steps, cancel=cancel)
+    """A bank of clips' W inversions (their own label and metadata, their inversion error; every clip,
+    or ``per_label`` clips of each label drawn with ``seed``) and ``n_samples`` codes of the prior
+    (labelled by ``label_samples``), with modes per label and maps."""
+    chosen = inverted_clips(prepared.actions, per_label, seed)
+    inverted, errors = invert_clips(network, prepared, chosen, steps, cancel=cancel)
+    real_labels = prepared.actions[chosen]
     sampled = sample_w(network, n_samples, seed) if n_samples else np.zeros((0, inverted.shape[1]))
     labels = (
-        label_samples(network, prepared.skeleton, sampled, classifier, inverted, prepared.actions)
+        label_samples(network, prepared.skeleton, sampled, classifier, inverted, real_labels)
         if n_samples
         else []
     )
+    clip_metas = split_metas(prepared, val_idx)
     metas = [
-        m | {"origin": "inverted", "inversion_error_m": round(float(e), 4)}
-        for m, e in zip(split_metas(prepared, val_idx), errors, strict=True)
+        clip_metas[i] | {"origin": "inverted", "inversion_error_m": round(float(e), 4)}
+        for i, e in zip(chosen, errors, strict=True)
     ]
     metas += [{"origin": "sample", "seed": seed, "index": i} for i in range(n_samples)]
     return build_bank(
         np.concatenate([inverted, sampled]).astype(np.float32),
-        np.concatenate([prepared.actions, np.asarray(labels, np.int64)]),
-        np.zeros((prepared.n_clips + n_samples, 3), np.float32),
-        [*prepared.sources, *(f"sample {seed}:{i}" for i in range(n_samples))],
+        np.concatenate([real_labels, np.asarray(labels, np.int64)]),
+        np.zeros((len(chosen) + n_samples, 3), np.float32),
+        [*(prepared.sources[i] for i in chosen), *(f"sample {seed}:{i}" for i in range(n_samples))],
         metas,
         prepared.action_names,
         k_range=k_range,
@@ -149,6 +162,7 @@ def train_modi(
     clip_features: ClipFeatures | None = None,
     classifier: Classifier | None = None,
     bank_samples: int = BANK_SAMPLES,
+    bank_per_label: int | None = None,
     bank_steps: int = INVERT_STEPS,
     bank_projections: Sequence[str] = ("pca", "tsne", "umap"),
     bank_k_range: tuple[int, int] = (3, 11),
@@ -156,7 +170,8 @@ def train_modi(
     """Train MoDi on ``clips`` and write its model folder ``out_dir`` (weights, model.json, train_log.csv,
     checkpoints/last.pt, latent_bank.npz); the split, budget, ``resume`` and ``cancel`` as in
     ``engine.train.loop.train``. ``clip_features`` skips the inverse kinematics when already computed;
-    the bank holds ``bank_samples`` prior codes and every clip inverted in W by ``bank_steps`` steps."""
+    the bank holds ``bank_samples`` prior codes and the clips (all, or ``bank_per_label`` per label)
+    inverted in W by ``bank_steps`` steps."""
     out = Path(out_dir)
     dev = resolve_device(device)
     prepared = prepare_clips(clips, action_names, config.fps, config.window)
@@ -196,6 +211,7 @@ def train_modi(
         val_idx,
         classifier=classifier,
         n_samples=bank_samples,
+        per_label=bank_per_label,
         steps=bank_steps,
         projections=bank_projections,
         k_range=bank_k_range,

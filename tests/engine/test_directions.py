@@ -134,3 +134,30 @@ def test_cli_latent_commands_refuse_what_a_kind_lacks(tiny_model_dir: Path, caps
     assert "name an --action" in capsys.readouterr().err
     assert main(["edit", "--model", str(tiny_model_dir), "--list"]) == 0
     assert "speed\tscore" in capsys.readouterr().out
+
+
+def test_edit_effect_sees_a_style_edit_with_a_style_classifier(
+    tiny_model_dir: Path, procedural_clips, tmp_path: Path
+) -> None:
+    import dataclasses
+
+    from engine.metrics.classifier import train_classifier
+    from engine.metrics.edits import edit_effect
+    from tests.fixtures.procedural import PROCEDURAL_ACTIONS
+
+    styles = sorted({c.meta["style"] for c in procedural_clips})
+    relabelled = [dataclasses.replace(c, action=c.meta["style"]) for c in procedural_clips]
+    style_clf = train_classifier(relabelled, styles, tmp_path / "style", epochs=4, batch_size=16, window=40)
+    action_clf = train_classifier(procedural_clips, PROCEDURAL_ACTIONS, tmp_path / "act", epochs=4,
+                                  batch_size=16, window=40)  # fmt: skip
+    generator = open_generator(tiny_model_dir)
+    bank = generator.bank
+    target = styles[0]
+    rows = [i for i, m in enumerate(bank.meta) if m.get("style") != target][:12]
+    actions = [bank.action_names[int(bank.actions[i])] for i in rows]
+    effect = edit_effect(generator, bank.codes[rows], actions, f"style={target}", 3.0, style_clf, action_clf)
+    assert effect.n == 12 and 0.0 <= effect.kept <= 1.0
+    back = edit_effect(generator, bank.codes[rows], actions, f"style={target}", -3.0, style_clf, action_clf)
+    assert effect.after > back.after  # towards the style raises its probability more than away from it
+    with pytest.raises(ConfigError, match="the style classifier knows"):
+        edit_effect(generator, bank.codes[rows], actions, "style=nope", 1.0, style_clf, action_clf)
