@@ -2,11 +2,13 @@
 
     python bench/train_modi.py --data "$(../shared/data/unpack)" --epochs 40 [--from-run DIR]
 
-Trains ``engine.train.modi_loop.train_modi`` on every clip with its own 10 % validation split (seed 0),
-resuming from --work (or from the checkpoint of another run of the same settings, --from-run), then
-writes the model folder with a bank of inverted clips (--bank-per-label per action) and labelled prior
-samples. It is evaluated (``engine.metrics.modi_eval``) on the validation clips, which the generator and
-its critic never trained on, with the bundled ODMO model's classifier; the card reports every figure.
+Trains ``engine.train.modi_loop.train_modi`` on the training part of the held-out split every model of
+docs/RESULTS.md uses (bench/heldout.py; ``--split all``: on every clip, keeping only its own 10 %
+validation clips unseen), resuming from --work (or from the checkpoint of another run of the same
+settings, --from-run), then writes the model folder with a bank of inverted clips (--bank-per-label per
+action) and labelled prior samples. It is evaluated (``engine.metrics.modi_eval``) on the clips the
+generator and its critic never trained on, with the bundled ODMO model's classifier; the card reports
+every figure.
 """
 
 from __future__ import annotations
@@ -26,6 +28,7 @@ import torch
 if __package__ in (None, ""):
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+from bench.heldout import HELDOUT_FRACTION, SPLIT_SEED, heldout_split
 from bench.model_card import METRICS, cell, per_action_table, physics_targets
 from bench.train_default import card_argv
 from engine.fileio import atomic_write_text
@@ -35,6 +38,7 @@ from engine.metrics.classifier import load_classifier
 from engine.metrics.modi_eval import evaluate_modi
 from engine.model.modi import ModiConfig
 from engine.motion.datasets import load_folder
+from engine.motion.motion import Motion
 from engine.train.epochs import TrainProgress
 from engine.train.modi_loop import train_modi
 from engine.train.modi_steps import ClipFeatures, clip_features
@@ -61,6 +65,7 @@ def parse_args() -> argparse.Namespace:
     p.add_argument("--work", type=Path, default=Path("runs/bandai2-modi"), help="checkpoints and logs")
     p.add_argument("--from-run", type=Path, help="start from this run's checkpoint (same settings)")
     p.add_argument("--epochs", type=int, default=40, help="epochs of 2,048 windows (128 steps)")
+    p.add_argument("--split", choices=("heldout", "all"), default="heldout", help="the clips it trains on")
     p.add_argument("--classifier", type=Path, default=CLASSIFIER)
     p.add_argument("--bank-per-label", type=int, default=30, help="clips inverted per action for the bank")
     p.add_argument("--bank-samples", type=int, default=2000, help="prior samples in the bank")
@@ -100,9 +105,10 @@ def main() -> int:
         for cache in args.from_run.glob("features-*.npz"):
             shutil.copy2(cache, work / cache.name)
     dataset = load_folder(args.data)
+    clips = dataset.clips if args.split == "all" else heldout_split(dataset.clips)[0]
     names = dataset.action_names
     config = ModiConfig(n_joints=dataset.skeleton.n_joints, n_actions=len(names), epochs=args.epochs)
-    prepared = prepare_clips(dataset.clips, names, config.fps, config.window)
+    prepared = prepare_clips(clips, names, config.fps, config.window)
     classifier = load_classifier(args.classifier)
 
     def show(p: TrainProgress) -> None:
@@ -112,7 +118,7 @@ def main() -> int:
 
     started = time.time()
     result = train_modi(
-        dataset.clips, names, work, config, seed=args.seed, device="cpu", resume=True, progress=show,
+        clips, names, work, config, seed=args.seed, device="cpu", resume=True, progress=show,
         clip_features=cached_features(work, prepared), classifier=classifier, bank_samples=args.bank_samples,
         bank_per_label=args.bank_per_label, bank_steps=args.bank_steps,
     )  # fmt: skip
@@ -125,7 +131,11 @@ def main() -> int:
     }
     generator = open_generator(work)
     trained = set(generator.loaded.provenance["train_sources"])
-    held = [c for c in dataset.clips if str(c.meta["source"]) not in trained]
+    held = (
+        heldout_split(dataset.clips)[1]
+        if args.split == "heldout"
+        else [c for c in dataset.clips if str(c.meta["source"]) not in trained]
+    )
     if args.reuse_eval and (work / "eval.json").is_file():
         report = json.loads((work / "eval.json").read_text())
     else:
@@ -146,7 +156,7 @@ def main() -> int:
     atomic_write_text(out / "heldout_clips.txt", "\n".join(heldout) + "\n")
     meta = report["meta"] | {"model": out.name, "classifier": _shown(args.classifier)}
     atomic_write_text(out / "eval.json", json.dumps(report | {"meta": meta}, indent=2))
-    card = model_card(report, generator, summary, sys.argv[1:], len(held), prepared.fingerprint())
+    card = model_card(report, generator, summary, sys.argv[1:], held, prepared.fingerprint(), args.split)
     atomic_write_text(out / "MODEL_CARD.md", card)
     return 0
 
@@ -168,8 +178,9 @@ def model_card(
     generator: ModiGenerator,
     summary: dict[str, Any],
     argv: list[str],
-    n_heldout: int,
+    held: list[Motion],
     fingerprint: str,
+    split: str,
 ) -> str:
     """MODEL_CARD.md from the evaluation report and the training summary (never typed by hand)."""
     gen, real = report["generated"], report["real"]
@@ -223,9 +234,15 @@ def model_card(
         "",
         "## Evaluation",
         "",
-        f"{n_heldout} held-out clips: the training run's own validation split (10 % per action, seed 0), "
-        "never seen by the generator or its critic; so its real row differs from bandai2-odmo's, whose "
-        f"held-out split is another. {meta['repeats']} repeats of {meta['n_per_action']} × "
+        f"{len(held)} held-out clips, never seen by the generator or its critic: "
+        + (
+            "the held-out split of bandai2-odmo and docs/RESULTS.md (bench/heldout.py, "
+            f"{HELDOUT_FRACTION:.0%} per action × style, seed {SPLIT_SEED}). "
+            if split == "heldout"
+            else "the training run's own validation split (10 % per action, seed 0; it trained on every "
+            "other clip), so its real row differs from bandai2-odmo's. "
+        )
+        + f"{meta['repeats']} repeats of {meta['n_per_action']} × "
         f"{len(shares)} prior samples (ψ = 1), each cut to its centre {meta['window']} frames for the "
         f"classifier of bandai2-odmo (accuracy {meta['classifier_test_accuracy']:.3f} on its test windows), "
         "which also labels them; accuracy is not applicable. Mean ± 95 % interval over the repeats "
