@@ -51,6 +51,7 @@ log = logging.getLogger("bench.compare")
 REPO = Path(__file__).resolve().parents[1]
 RESULTS = REPO / "docs" / "RESULTS.md"
 DEFAULT_MODEL = REPO / "resources" / "models" / "bandai2-odmo"
+MODI_MODEL = REPO / "resources" / "models" / "bandai2-modi"
 CLASSIFIERS = (REPO / "runs" / "bandai2-odmo" / "classifier", DEFAULT_MODEL / "classifier")
 SPEED_BATCH = 64
 WINDOW, FPS = 60, 20.0  # the OdmoConfig / A2mConfig defaults every model here uses
@@ -108,6 +109,22 @@ COLUMNS = (
     ("Hand speed (m/s) →", "hand_speed_m_s", 3),
     ("Jerk (m/s³) →", "jerk_m_s3", 0),
 )
+# The unconditional table (MoDi): (header, metric key, decimals).
+UNCONDITIONAL_COLUMNS = (
+    ("FID ↓", "fid", 3),
+    ("KID ↓", "kid", 4),
+    ("Precision ↑", "precision", 3),
+    ("Recall ↑", "recall", 3),
+    ("Action KL ↓", "action_kl", 3),
+    ("Diversity →", "diversity", 3),
+    ("Inversion error (m) ↓", "inversion_error_m", 4),
+    ("Bone cv ↓", "bone_length_cv", 4),
+    ("Foot skate (m/s) →", "foot_skate_m_s", 3),
+    ("Under floor →", "floor_penetration", 3),
+    ("Floating →", "float_share", 3),
+    ("Hand speed (m/s) →", "hand_speed_m_s", 3),
+    ("Jerk (m/s³) →", "jerk_m_s3", 0),
+)
 # Per-action tables (``per_action_entries``) against real: (header, metric key, decimals).
 PER_ACTION_COLUMNS = (
     ("hand speed (m/s)", "hand_speed_m_s", 2),
@@ -130,6 +147,7 @@ def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
     p.add_argument("--runs", type=Path, default=REPO / "runs" / "compare")
     p.add_argument("--results", type=Path, default=RESULTS)
     p.add_argument("--classifier", type=Path, help="evaluation classifier folder (default: the shipped one)")
+    p.add_argument("--modi", type=Path, default=MODI_MODEL, help="MoDi model folder whose eval.json to show")
     p.add_argument("--classifier-epochs", type=int, default=40)
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--repeats", type=int, default=10)
@@ -214,8 +232,10 @@ def results_markdown(
     entries: Sequence[dict[str, Any]],
     info: dict[str, str],
     labels: dict[str, str] | None = None,
+    unconditional: dict[str, Any] | None = None,
 ) -> str:
-    """RESULTS.md: the table (real row, then one row per entry) and the bullet list ``info``.
+    """RESULTS.md: the table (real row, then one row per entry), the unconditional model's table (its
+    evaluation report ``unconditional``, when given) and the bullet list ``info``.
 
     ``real`` and each entry's ``generated`` are ``{metric: {"mean", "ci95"}}`` blocks; an entry has ``row``
     (a ROWS key) and an optional ``speed`` (decoded motions/s at batch 64).
@@ -244,9 +264,43 @@ def results_markdown(
     lines.append("")
     for entry in per_action_entries(entries):
         lines += per_action_markdown(entry["per_action"], names[entry["row"]])
+    if unconditional is not None:
+        lines += unconditional_markdown(unconditional)
     lines += ["## How it was made", ""]
     lines += [f"- **{key}**: {value}" for key, value in info.items()]
     return "\n".join(lines) + "\n"
+
+
+def unconditional_markdown(report: dict[str, Any]) -> list[str]:
+    """The MoDi section: its evaluation report's real and generated rows and what they were measured on."""
+    meta = report["meta"]
+    headers = [h for h, _, _ in UNCONDITIONAL_COLUMNS]
+    lines = [
+        "## Unconditional: MoDi",
+        "",
+        f"The bundled `{meta['model']}`, from its own evaluation report (`eval.json`, written by "
+        f"`bench/train_modi.py`): {meta['n_real_clips']} real clips it never trained on, "
+        f"{meta['repeats']} repeats of {meta['n_per_action']} prior samples per action (ψ = "
+        f"{meta['truncation']:g}), cut to the classifier's {meta['window']} frames and labelled by it "
+        "(so accuracy does not apply). Its real clips are "
+        + ("the held-out split above." if meta.get("split") == "heldout" else "its training run's own "
+           "validation clips, not the held-out split above, so its real row differs from the table's.")
+        + f" Inversion: {meta['n_inverted_clips']} of those clips in W+ ({meta['inversion_steps']} steps).",
+        "",
+        "| Model | " + " | ".join(headers) + " |",
+        "|---|" + "|".join("---" for _ in headers) + "|",
+    ]  # fmt: skip
+    for name, block in (("Real motions", report["real"]), ("MoDi (prior, ψ = 1)", report["generated"])):
+        cells = [_cell(block, key, d) for _, key, d in UNCONDITIONAL_COLUMNS]
+        lines.append(f"| {name} | " + " | ".join(cells) + " |")
+    shares = {a: row["generated"]["predicted_share"]["mean"] for a, row in report["per_action"].items()
+              if "predicted_share" in row["generated"]}  # fmt: skip
+    if shares:
+        lines += [
+            "",
+            "Predicted action of its samples: " + ", ".join(f"{a} {v:.1%}" for a, v in shares.items()),
+        ]
+    return [*lines, ""]
 
 
 def _choose_classifier(
@@ -567,7 +621,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         f"--seed {args.seed}` "
         "(add `--reuse` to keep trained models; the classifier is the shipped one when present)",
     }
-    atomic_write_text(args.results, results_markdown(real, entries, info, labels))
+    modi_report = args.modi / "eval.json"
+    unconditional = json.loads(modi_report.read_text()) if modi_report.is_file() else None
+    atomic_write_text(args.results, results_markdown(real, entries, info, labels, unconditional))
     print(f"wrote {args.results}")
     return 0
 

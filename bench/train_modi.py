@@ -75,6 +75,7 @@ def parse_args() -> argparse.Namespace:
     p.add_argument("--n-per-action", type=int, default=50)
     p.add_argument("--threads", type=int, default=1, help="torch CPU threads")
     p.add_argument("--reuse-eval", action="store_true", help="reuse --work/eval.json for the card")
+    p.add_argument("--skip-train", action="store_true", help="package the model and bank already in --work")
     return p.parse_args()
 
 
@@ -116,20 +117,15 @@ def main() -> int:
             losses = " ".join(f"{k} {v:.4g}" for k, v in p.losses.items())
             print(f"epoch {p.epoch}/{p.epochs} {losses} eta {p.eta_s / 60:.0f} min", flush=True)
 
-    started = time.time()
-    result = train_modi(
-        clips, names, work, config, seed=args.seed, device="cpu", resume=True, progress=show,
-        clip_features=cached_features(work, prepared), classifier=classifier, bank_samples=args.bank_samples,
-        bank_per_label=args.bank_per_label, bank_steps=args.bank_steps,
-    )  # fmt: skip
-    summary = {
-        "train_seconds": result.train_seconds,
-        "package_seconds": time.time() - started,
-        "n_train": result.n_train,
-        "n_val": result.n_val,
-        "torch_threads": torch.get_num_threads(),
-    }
+    if not args.skip_train:
+        train_modi(
+            clips, names, work, config, seed=args.seed, device="cpu", resume=True, progress=show,
+            clip_features=cached_features(work, prepared), classifier=classifier,
+            bank_samples=args.bank_samples, bank_per_label=args.bank_per_label, bank_steps=args.bank_steps,
+        )  # fmt: skip
     generator = open_generator(work)
+    made = generator.loaded.provenance
+    summary = {k: made[k] for k in ("train_seconds", "n_train", "n_val")} | {"torch_threads": args.threads}
     trained = set(generator.loaded.provenance["train_sources"])
     held = (
         heldout_split(dataset.clips)[1]
@@ -154,7 +150,7 @@ def main() -> int:
     shutil.copy2(args.data / "LICENSE", out / "LICENSE")  # the data's CC BY-NC 4.0, which the model inherits
     heldout = sorted(str(Path(c.meta["source"]).name) for c in held)
     atomic_write_text(out / "heldout_clips.txt", "\n".join(heldout) + "\n")
-    meta = report["meta"] | {"model": out.name, "classifier": _shown(args.classifier)}
+    meta = report["meta"] | {"model": out.name, "classifier": _shown(args.classifier), "split": args.split}
     atomic_write_text(out / "eval.json", json.dumps(report | {"meta": meta}, indent=2))
     card = model_card(report, generator, summary, sys.argv[1:], held, prepared.fingerprint(), args.split)
     atomic_write_text(out / "MODEL_CARD.md", card)
