@@ -59,9 +59,9 @@ class LatentTools:
             lambda: self.ask_invert(panel.space_combo.currentText(), panel.steps_spin.value())
         )
         c.state.events.picked.connect(self._picked_changed)
-        c.state.events.model.connect(self._model_changed)
+        c.modelLoaded.connect(self._model_changed)  # before --select's click, which picks a code
 
-    def _model_changed(self, generator: Generator | None) -> None:
+    def _model_changed(self, generator: Generator) -> None:
         self.crowds += 1
         self.inversions += 1
         self.c.state.picked = ()

@@ -7,10 +7,12 @@ from PySide6.QtCore import Qt, Signal
 from PySide6.QtWidgets import (
     QComboBox,
     QDoubleSpinBox,
-    QFormLayout,
+    QFrame,
     QGroupBox,
+    QHBoxLayout,
     QLabel,
     QPushButton,
+    QScrollArea,
     QSlider,
     QSpinBox,
     QVBoxLayout,
@@ -35,72 +37,71 @@ class LatentToolsPanel(QWidget):
 
     def __init__(self, parent: QWidget | None = None) -> None:
         super().__init__(parent)
-        self.truncate_box = QGroupBox("Truncation (sampling)")
+        self.truncate_box = QGroupBox("Truncation ψ (sampling)")
         self.psi_slider = QSlider(Qt.Orientation.Horizontal)
         self.psi_slider.setRange(0, _PSI_STEPS)
         self.psi_slider.setValue(_PSI_STEPS)
         self.psi_slider.setToolTip("ψ: 1 samples the whole prior, 0 the mean code only")
         self.psi_label = QLabel()
         self.psi_slider.valueChanged.connect(self._psi_changed)
-        row = QFormLayout(self.truncate_box)
-        row.addRow(self.psi_label, self.psi_slider)
+        _row(self.truncate_box, self.psi_label, self.psi_slider)
 
         self.mix_box = QGroupBox("Style mixing")
-        self.mix_codes = QLabel("Click two codes on the map.")
+        self.mix_codes = QLabel()
         self.mix_codes.setWordWrap(True)
-        self.split_spin = QSpinBox(minimum=0, maximum=0)
+        self.split_spin = QSpinBox(minimum=0, maximum=0, prefix="levels from A: ")
         self.split_spin.setToolTip("Skeleton levels (coarsest first) taken from A; the finer ones from B")
         self.mix_button = QPushButton("Mix A × B")
         self.mix_button.clicked.connect(lambda: self.mixRequested.emit(self.split_spin.value()))
         self.split_spin.valueChanged.connect(self._split_changed)
-        form = QFormLayout(self.mix_box)
-        form.addRow(self.mix_codes)
-        form.addRow("Levels from A", self.split_spin)
-        form.addRow(self.mix_button)
+        _row(self.mix_box, self.split_spin, self.mix_button).insertWidget(0, self.mix_codes)
+        self.set_mix_codes(None, None)
 
         self.crowd_box = QGroupBox("Crowd around the shown code")
-        self.crowd_n = QSpinBox(minimum=1, maximum=64, value=6)
-        self.crowd_sigma = QDoubleSpinBox(minimum=0.0, maximum=10.0, value=0.5, singleStep=0.1, decimals=2)
+        self.crowd_n = QSpinBox(minimum=1, maximum=64, value=6, prefix="N ")
+        self.crowd_sigma = QDoubleSpinBox(
+            minimum=0.0, maximum=10.0, value=0.5, singleStep=0.1, decimals=2, prefix="σ "
+        )
         self.crowd_sigma.setToolTip("Standard deviation σ of the codes drawn around the shown one")
         self.crowd_button = QPushButton("Sample crowd")
         self.crowd_button.clicked.connect(
             lambda: self.crowdRequested.emit(self.crowd_n.value(), self.crowd_sigma.value())
         )
-        form = QFormLayout(self.crowd_box)
-        form.addRow("N", self.crowd_n)
-        form.addRow("σ", self.crowd_sigma)
-        form.addRow(self.crowd_button)
+        _row(self.crowd_box, self.crowd_n, self.crowd_sigma, self.crowd_button)
 
-        self.invert_box = QGroupBox("Invert a clip")
+        self.invert_box = QGroupBox("Invert a clip (or drop files on the map)")
         self.space_combo = QComboBox()
         self.space_combo.addItems(["W+", "W"])
         self.space_combo.setToolTip("W+: one code per style layer (closer fit); W: one code for all")
-        self.steps_spin = QSpinBox(minimum=0, maximum=20_000, value=0, singleStep=50)
-        self.steps_spin.setSpecialValueText("model default")
+        self.steps_spin = QSpinBox(minimum=0, maximum=20_000, value=0, singleStep=50, suffix=" steps")
+        self.steps_spin.setSpecialValueText("default steps")
+        self.steps_spin.setToolTip("Optimisation steps (the lowest value: the model's default)")
         self.invert_button = QPushButton("Invert clip…")
-        self.invert_button.setToolTip("Find the code of a motion file (or drop one on the map)")
+        self.invert_button.setToolTip("Find the code of a motion file by optimisation")
         self.invert_button.clicked.connect(
             lambda: self.invertRequested.emit(self.space_combo.currentText(), self.steps_spin.value())
         )
-        form = QFormLayout(self.invert_box)
-        form.addRow("Space", self.space_combo)
-        form.addRow("Steps", self.steps_spin)
-        form.addRow(self.invert_button)
+        _row(self.invert_box, self.space_combo, self.steps_spin, self.invert_button)
 
-        layout = QVBoxLayout(self)
+        inner = QWidget()
+        column = QVBoxLayout(inner)
+        column.setContentsMargins(2, 2, 2, 2)
         for box in (self.truncate_box, self.mix_box, self.crowd_box, self.invert_box):
-            layout.addWidget(box)
-        layout.addStretch(1)
+            column.addWidget(box)
+        column.addStretch(1)
+        scroll = QScrollArea()  # a short dock scrolls instead of squeezing the boxes
+        scroll.setWidgetResizable(True)
+        scroll.setFrameShape(QFrame.Shape.NoFrame)
+        scroll.setWidget(inner)
+        layout = QVBoxLayout(self)
+        layout.setContentsMargins(0, 0, 0, 0)
+        layout.addWidget(scroll)
         self._psi_changed()
 
     @property
     def psi(self) -> float:
         """The slider's ψ in [0, 1]."""
         return self.psi_slider.value() / _PSI_STEPS
-
-    def set_psi(self, psi: float) -> None:
-        """Move the slider to ψ (clipped to [0, 1])."""
-        self.psi_slider.setValue(round(min(max(float(psi), 0.0), 1.0) * _PSI_STEPS))
 
     def set_levels(self, n_levels: int) -> None:
         """Offer splits 0..``n_levels`` (0: every level from B; ``n_levels``: every level from A)."""
@@ -109,7 +110,7 @@ class LatentToolsPanel(QWidget):
     def set_mix_codes(self, a: str | None, b: str | None) -> None:
         """Name the two codes a mix takes (None: not picked yet)."""
         if a is None or b is None:
-            self.mix_codes.setText(f"A: {a or '—'}\nB: {b or '—'}\nClick two codes on the map.")
+            self.mix_codes.setText(f"A: {a or '—'} · B: {b or '—'} (click two codes on the map)")
         else:
             self.mix_codes.setText(f"A (coarse): {a}\nB (fine): {b}")
 
@@ -120,3 +121,14 @@ class LatentToolsPanel(QWidget):
     def _split_changed(self, split: int) -> None:
         if self.mix_box.isEnabled():
             self.mixRequested.emit(int(split))
+
+
+def _row(box: QGroupBox, *widgets: QWidget) -> QVBoxLayout:
+    """Lay ``widgets`` out in one row of ``box``; returns the box's column layout."""
+    column = QVBoxLayout(box)
+    column.setContentsMargins(6, 4, 6, 4)
+    row = QHBoxLayout()
+    for widget in widgets:
+        row.addWidget(widget, 1 if isinstance(widget, QSlider) else 0)
+    column.addLayout(row)
+    return column
