@@ -57,6 +57,23 @@ class LoadedModel:
     path: Path
 
 
+@dataclass
+class LoadedFolder:
+    """A model folder of any kind in memory: its network (eval mode), config, skeleton, actions, frame
+    rate, window, display height, provenance, path and latent bank; each kind narrows the types."""
+
+    model: torch.nn.Module
+    config: Any
+    skeleton: Skeleton
+    action_names: list[str]
+    fps: float
+    window: int
+    root_height: float
+    provenance: dict[str, Any]
+    path: Path
+    bank: LatentBank | None = None
+
+
 def resolve_device(device: str) -> torch.device:
     """``"auto"`` → CUDA when available, else CPU; any other torch device string as given."""
     if device == "auto":

@@ -20,9 +20,8 @@ from engine.generate import Sample, interpolation_codes
 from engine.generators.base import CodeSpace, FolderGenerator, Generator, SampleRequest, refusal, require
 from engine.latent.bank import LatentBank
 from engine.model.a2m import A2mConfig, A2mModel
-from engine.modelio import BANK_FILE, read_bank, read_model_folder
+from engine.modelio import BANK_FILE, LoadedFolder, read_bank, read_model_folder
 from engine.motion.motion import Motion
-from engine.motion.skeleton import Skeleton
 from engine.train.windows import prepare_clips, windows_at
 
 ARCH = "a2m"
@@ -31,19 +30,11 @@ STRATEGIES = ("prior", "mode_preserving", "conventional")
 
 
 @dataclass
-class LoadedA2m:
+class LoadedA2m(LoadedFolder):
     """An A2M model folder in memory: the network (eval mode), its latent bank and what using it needs."""
 
     model: A2mModel
     config: A2mConfig
-    skeleton: Skeleton
-    action_names: list[str]
-    fps: float
-    window: int
-    root_height: float
-    provenance: dict
-    path: Path
-    bank: LatentBank | None = None
 
 
 def load_a2m(model_dir: str | Path, device: str = "cpu", with_bank: bool = True) -> LoadedA2m:

@@ -30,7 +30,7 @@ from engine.generators.modi_latent import (
 )
 from engine.latent.bank import LatentBank
 from engine.model.modi import ModiConfig, ModiNetwork
-from engine.modelio import BANK_FILE, read_bank, read_model_folder, write_model_folder
+from engine.modelio import BANK_FILE, LoadedFolder, read_bank, read_model_folder, write_model_folder
 from engine.motion.contact import foot_joints
 from engine.motion.ik import plant_feet
 from engine.motion.motion import Motion
@@ -42,20 +42,12 @@ STRATEGIES = ("prior", "mode_preserving", "conventional")
 
 
 @dataclass
-class LoadedModi:
+class LoadedModi(LoadedFolder):
     """A MoDi model folder in memory: the shipped (EMA) network in eval mode, its bank and what using it
     needs; ``action_names`` are the labels of the training data (the bank's), not a condition."""
 
     model: ModiNetwork
     config: ModiConfig
-    skeleton: Skeleton
-    action_names: list[str]
-    fps: float
-    window: int
-    root_height: float
-    provenance: dict
-    path: Path
-    bank: LatentBank | None = None
 
 
 def load_modi(model_dir: str | Path, device: str = "cpu", with_bank: bool = True) -> LoadedModi:

@@ -231,18 +231,10 @@ def train_a2m(
     write_model_folder(
         out, model, config.to_dict(), prepared.skeleton, prepared.action_names, made, height, "a2m"
     )
+    bank = None
     if config.code_dim:
         bank = a2m_bank(
             model, prepared, val_idx, projections=bank_projections, k_range=bank_k_range, seed=seed
         )
         save_bank(out, bank)
-    return TrainResult(
-        model_dir=out,
-        epochs=config.epochs,
-        train_losses=run.train_losses,
-        val_losses=run.val_losses,
-        windows_per_s=run.windows_per_s,
-        train_seconds=run.train_seconds,
-        n_train=len(train_idx),
-        n_val=len(val_idx),
-    )
+    return TrainResult.of(out, config.epochs, run, (train_idx, val_idx), bank)

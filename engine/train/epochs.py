@@ -90,6 +90,21 @@ class TrainResult:
     n_val: int
     bank: LatentBank | None = field(default=None, repr=False)
 
+    @classmethod
+    def of(
+        cls,
+        out: Path,
+        epochs: int,
+        run: EpochsRun,
+        split: tuple[np.ndarray, np.ndarray],
+        bank: LatentBank | None,
+    ) -> TrainResult:
+        """The result of a run of ``epochs`` into ``out`` on the (train, validation) clips ``split``."""
+        return cls(
+            out, epochs, run.train_losses, run.val_losses, run.windows_per_s, run.train_seconds,
+            len(split[0]), len(split[1]), bank,
+        )  # fmt: skip
+
 
 @dataclass
 class EpochsRun:

@@ -303,14 +303,4 @@ def train(
         cancel=cancel,
     )
     save_bank(out, bank)
-    return TrainResult(
-        model_dir=out,
-        epochs=config.epochs,
-        train_losses=run.train_losses,
-        val_losses=run.val_losses,
-        windows_per_s=run.windows_per_s,
-        train_seconds=run.train_seconds,
-        n_train=len(train_idx),
-        n_val=len(val_idx),
-        bank=bank,
-    )
+    return TrainResult.of(out, config.epochs, run, (train_idx, val_idx), bank)
