@@ -46,6 +46,17 @@ PER_ACTION = (
 SKATE_FLOOR = 0.02  # m/s: the planted-foot target for actions that stand still
 
 
+REPO = Path(__file__).resolve().parents[1]
+
+
+def repo_path(path: Path) -> str:
+    """``path`` relative to the repository when inside it, else its name (no machine paths on a card)."""
+    try:
+        return str(path.resolve().relative_to(REPO))
+    except ValueError:
+        return path.name
+
+
 def cell(summary: dict[str, Any], key: str) -> str:
     """``mean ± ci95`` of one metric, or a dash when it was not measured."""
     if key not in summary:

@@ -27,7 +27,7 @@ if __package__ in (None, ""):
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from bench.heldout import HELDOUT_FRACTION, SPLIT_SEED, heldout_split
-from bench.model_card import METRICS, cell, per_action_table, physics_targets
+from bench.model_card import METRICS, cell, per_action_table, physics_targets, repo_path
 from bench.train_default import card_argv
 from engine.fileio import atomic_write_text
 from engine.generators.a2m import load_a2m
@@ -130,21 +130,15 @@ def main() -> int:
     shutil.copy2(args.data / "LICENSE", out / "LICENSE")  # the data's CC BY-NC 4.0, which the model inherits
     heldout = sorted(str(Path(c.meta["source"]).name) for c in test_clips)
     atomic_write_text(out / "heldout_clips.txt", "\n".join(heldout) + "\n")
-    shipped = report | {"meta": report["meta"] | {"model": out.name, "classifier": _shown(args.classifier)}}
+    shipped = report | {
+        "meta": report["meta"] | {"model": out.name, "classifier": repo_path(args.classifier)}
+    }
     atomic_write_text(out / "eval.json", json.dumps(shipped, indent=2))  # no machine paths in what ships
     trained = load_a2m(work)
     summary["windows_seen"] = trained.provenance["windows_seen"]
     card = model_card(report, trained.config, summary, sys.argv[1:], len(test_clips), dataset.fingerprint)
     atomic_write_text(out / "MODEL_CARD.md", card)
     return 0
-
-
-def _shown(path: Path) -> str:
-    """``path`` relative to the repository when inside it, else its name."""
-    try:
-        return str(path.resolve().relative_to(ROOT))
-    except ValueError:
-        return path.name
 
 
 def model_card(

@@ -29,7 +29,7 @@ if __package__ in (None, ""):
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from bench.heldout import HELDOUT_FRACTION, SPLIT_SEED, heldout_split
-from bench.model_card import METRICS, cell, per_action_table, physics_targets
+from bench.model_card import METRICS, cell, per_action_table, physics_targets, repo_path
 from bench.train_default import card_argv
 from engine.fileio import atomic_write_text
 from engine.generators import open_generator
@@ -150,19 +150,11 @@ def main() -> int:
     shutil.copy2(args.data / "LICENSE", out / "LICENSE")  # the data's CC BY-NC 4.0, which the model inherits
     heldout = sorted(str(Path(c.meta["source"]).name) for c in held)
     atomic_write_text(out / "heldout_clips.txt", "\n".join(heldout) + "\n")
-    meta = report["meta"] | {"model": out.name, "classifier": _shown(args.classifier), "split": args.split}
+    meta = report["meta"] | {"model": out.name, "classifier": repo_path(args.classifier), "split": args.split}
     atomic_write_text(out / "eval.json", json.dumps(report | {"meta": meta}, indent=2))
     card = model_card(report, generator, summary, sys.argv[1:], held, prepared.fingerprint(), args.split)
     atomic_write_text(out / "MODEL_CARD.md", card)
     return 0
-
-
-def _shown(path: Path) -> str:
-    """``path`` relative to the repository when inside it, else its name."""
-    try:
-        return str(path.resolve().relative_to(ROOT))
-    except ValueError:
-        return path.name
 
 
 def _met(ok: bool) -> str:
