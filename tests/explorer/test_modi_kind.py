@@ -184,6 +184,17 @@ def test_a_dropped_clip_is_inverted_with_progress_and_shown_beside_it(
     np.testing.assert_allclose(c.state.extra.xy[0], c.projection.transform(modi.as_w(code))[0], atol=1e-6)
     assert c.state.picked[-1].code is not None and "clip.npz (W+)" in window.latent_panel.mix_codes.text()
 
+    # an inversion asked for before a newer one is dropped even when it ends last
+    older, newer = tmp_path / "older.npz", tmp_path / "newer.npz"
+    write_motion(procedural_clips[1], older)
+    write_motion(procedural_clips[2], newer)
+    c.latent.invert_files([str(older)], "W", 150)
+    with qtbot.waitSignal(c.shownChanged, timeout=120_000):
+        c.latent.invert_files([str(newer)], "W", 5)
+    qtbot.waitUntil(lambda: not c.tasks.active, timeout=120_000)
+    assert c.state.shown[0].label.startswith("newer.npz inverted (W,")
+    inverted = c.state.shown[0]
+
     # a cancelled inversion shows nothing and leaves what plays
     window.latent_panel.steps_spin.setValue(20_000)
     c.latent.invert_files([str(path)], "W", 20_000)
