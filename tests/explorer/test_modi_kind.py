@@ -214,3 +214,23 @@ def test_an_odmo_model_has_the_latent_tools_off_with_the_reason(qtbot, open_expl
     assert "sample a crowd around a code" in panel.crowd_box.toolTip()
     assert not window.invert_action.isEnabled()
     assert window.mode_panel.strategy_box.currentData() == "mode_preserving"
+
+
+def test_the_selection_tools_and_energy_colouring_work_on_a_modi_model(qtbot, opened: Opened, modi) -> None:
+    window, c = opened.window, opened.controller
+    chosen = [int(i) for i in np.flatnonzero(c.bank.actions == 0)[:6]]
+    c.state.selection = tuple(chosen)
+    for action in (window.variations_action, window.fit_mode_action, window.play_selection_action):
+        assert action.isEnabled(), action.text()
+        with qtbot.waitSignal(c.shownChanged, timeout=60_000):
+            action.trigger()
+        assert c.state.shown and all(np.isfinite(d.motion.joints).all() for d in c.state.shown)
+    played = [d for d in c.state.shown if d.bank_index is not None]
+    for d in played:
+        np.testing.assert_allclose(d.motion.joints, joints_of(modi, c.bank.codes[d.bank_index]), atol=1e-5)
+
+    c.state.color_by = "motion energy"
+    qtbot.waitUntil(lambda: c.map.energy is not None, timeout=60_000)
+    joints = np.stack([joints_of(modi, c.bank.codes[i]) for i in chosen])
+    speed = np.linalg.norm(np.diff(joints, axis=1), axis=-1).mean(axis=(1, 2)) * modi.fps
+    np.testing.assert_allclose(c.map.energy[chosen], speed, rtol=1e-4)
