@@ -24,6 +24,7 @@ PANEL_TOOLS: dict[str, str] = {
     "mix_box": "mix",
     "crowd_box": "crowd",
     "invert_box": "invert",
+    "edit_box": "edit",
 }
 
 

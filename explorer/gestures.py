@@ -53,7 +53,7 @@ class Gestures:
         self.c.state.marker = None
         code, action = extra.codes[k].copy(), int(extra.actions[k])
         label = f"marked point {k + 1}/{len(extra.codes)}"
-        self.c.state.pick(code, label)
+        self.c.state.pick(code, label, action)
         self.decode_code(code, action, label)
 
     def click_point(self, index: int) -> None:
@@ -63,7 +63,8 @@ class Gestures:
         self.c.state.selection = (int(index),)
         self.c.state.marker = None
         self.c.state.extra = None  # the samples' diamonds belong to the samples, which no longer play
-        self.c.state.pick(self.c.bank.codes[index], f"#{index} {self.c.bank.sources[index]}")
+        bank = self.c.bank
+        self.c.state.pick(bank.codes[index], f"#{index} {bank.sources[index]}", int(bank.actions[index]))
         self._decode_bank([int(index)], with_real=True)
 
     def _decode_bank(self, indices: Sequence[int], with_real: bool = False, note: str = "") -> None:
@@ -96,7 +97,7 @@ class Gestures:
         if mark:
             self.c.state.selection = ()
             self.c.state.marker = xy.astype(np.float64)
-            self.c.state.pick(code, label)
+            self.c.state.pick(code, label, action)
         self.decode_code(code, action, label)
 
     def decode_code(

@@ -162,7 +162,7 @@ class LatentTools:
             Decoded(first.decoded, label, first.code, int(actions[0])),
             Decoded(first.real, f"{first.path.name} (real clip)", None, int(actions[0])),
         )
-        self.c.state.pick(first.code, f"{first.path.name} ({first.space})")
+        self.c.state.pick(first.code, f"{first.path.name} ({first.space})", int(actions[0]))
         others = f"; {len(found) - 1} more marked ◆ on the map" if len(found) > 1 else ""
         self.c.window.show_status(
             f"Inverted {first.path.name} into a {first.space} code: mean joint error {cm:.1f} cm; "

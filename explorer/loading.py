@@ -166,8 +166,8 @@ class Loader:
         self._fill_color_combo(bank)
         w.mode_panel.set_strategies(UNCONDITIONAL_STRATEGIES if loaded.action_names is None else None)
         gate_tools(w, loaded)
-        if set(PANEL_TOOLS.values()) & loaded.capabilities:
-            w.latent_dock.raise_()
+        if set(PANEL_TOOLS.values()) & loaded.capabilities and "end" not in loaded.capabilities:
+            w.latent_dock.raise_()  # a kind that sets end locations keeps its trajectory tab in front
         w.viewport.set_skeletons(loaded.skeleton.parents, 1)
         self.c.playback.rig = None
         self.c.state.focus_action = 0

@@ -18,6 +18,7 @@ from explorer.state import Decoded
 if TYPE_CHECKING:
     from engine.generators.base import Generator
     from engine.latent.bank import LatentBank
+    from engine.latent.directions import EditDirection
     from engine.latent.projection import Projection
     from engine.motion.motion import Motion
 
@@ -159,3 +160,31 @@ class MixDecode:
             [motion] = g.decode(np.array(code, np.float32)[None], None)
             items.append(Decoded(motion, label, code, label_index(g, motion)))
         return tuple(items)
+
+
+@dataclass(frozen=True, eq=False)
+class EditDecode:
+    """``code`` (picked as action index ``action``) moved along each direction by its amount (spreads), one
+    direction after the other, decoded before the unedited code; the unedited code alone without edits."""
+
+    generator: Generator
+    code: np.ndarray
+    action: int
+    label: str
+    edits: tuple[tuple[EditDirection, float], ...]
+
+    def run(self) -> tuple[Decoded, ...]:
+        """The edited motion (its code), then the unedited one; decoded as ``generator.edit`` decodes."""
+        g, code = self.generator, np.array(self.code, np.float32).reshape(-1)
+        edited = code
+        for direction, amount in self.edits:
+            edited = direction.apply(edited, amount)
+        what = ", ".join(f"{d.name} {a:+.1f}" for d, a in self.edits)
+        items = [(edited, f"edited {self.label} · {what}")] if self.edits else []
+        items.append((code, self.label))
+        motions = g.decode(np.stack([c for c, _ in items]), condition(g, self.action))
+        note = "moved along each direction in turn; the unedited code plays beside it" if self.edits else ""
+        return tuple(
+            Decoded(m, label, c, label_index(g, m), note=note)
+            for m, (c, label) in zip(motions, items, strict=True)
+        )

@@ -13,6 +13,7 @@ from engine.motion.motion import Motion
 
 if TYPE_CHECKING:  # engine.modelio loads torch: the state is created before the model is
     from engine.generators.base import Generator
+    from engine.latent.directions import EditDirection
 
 PROJECTIONS = ("pca", "tsne", "umap")
 COLOR_BY = ("action", "mode", "motion energy")
@@ -79,13 +80,18 @@ class ExtraPoints:
 
 @dataclass(frozen=True, eq=False)
 class Pick:
-    """A code the user picked (clicked on the map, or an inverted clip): ``code`` (D,) and its label."""
+    """A code the user picked (clicked on the map, or an inverted clip): ``code`` (D,), its label and the
+    index of the action (or label) it was decoded as."""
 
     code: np.ndarray
     label: str
+    action: int = 0
 
 
-@evented(equality_operators={"model": operator.is_, "embedding": operator.is_, "marker": operator.is_})
+_SAME = {name: operator.is_ for name in ("model", "embedding", "marker", "edit_directions")}
+
+
+@evented(equality_operators=_SAME)
 @dataclass
 class AppState:
     """What the explorer shows; each field emits ``state.events.<field>`` when it changes.
@@ -108,6 +114,8 @@ class AppState:
     busy : text of the long task in progress ("" when idle).
     truncation : ψ that sampling pulls codes towards the mean code with (1: none), for kinds that truncate.
     picked : the last two picked codes, older first (style mixing takes the older's coarse levels).
+    edit_directions : the loaded model's edit directions, once found (empty before, or without "edit").
+    edits : (direction name, amount in spreads) of each edit slider off zero, in the directions' order.
     """
 
     model: Generator | None = None
@@ -126,9 +134,12 @@ class AppState:
     busy: str = ""
     truncation: float = 1.0
     picked: tuple[Pick, ...] = ()
+    edit_directions: tuple[EditDirection, ...] = ()
+    edits: tuple[tuple[str, float], ...] = ()
 
-    def pick(self, code: np.ndarray, label: str) -> None:
-        """Remember ``code`` (copied, read-only) as the newest picked code, keeping the one before it."""
+    def pick(self, code: np.ndarray, label: str, action: int = 0) -> None:
+        """Remember ``code`` (copied, read-only) of action index ``action`` as the newest picked code,
+        keeping the one before it."""
         frozen = np.array(code, dtype=np.float32)
         frozen.flags.writeable = False
-        self.picked = (*self.picked[-1:], Pick(frozen, label))
+        self.picked = (*self.picked[-1:], Pick(frozen, label, int(action)))

@@ -1,5 +1,6 @@
-"""LatentToolsPanel: truncation ψ, style mixing of two picked codes, a crowd around a code and clip
-inversion, each in a box the application enables or disables as a whole."""
+"""LatentToolsPanel: truncation ψ, style mixing of two picked codes, a crowd around a code, clip
+inversion and edit sliders (one per edit direction), each in a box the application enables or disables
+as a whole."""
 
 from __future__ import annotations
 
@@ -8,6 +9,7 @@ from PySide6.QtWidgets import (
     QComboBox,
     QDoubleSpinBox,
     QFrame,
+    QGridLayout,
     QGroupBox,
     QHBoxLayout,
     QLabel,
@@ -20,6 +22,8 @@ from PySide6.QtWidgets import (
 )
 
 _PSI_STEPS = 100
+EDIT_STEPS = 10  # edit slider steps per spread
+EDIT_SPREADS = 3  # an edit slider reaches this many spreads either way
 
 
 class LatentToolsPanel(QWidget):
@@ -27,13 +31,16 @@ class LatentToolsPanel(QWidget):
 
     Signals: ``truncationChanged(float)`` ψ in [0, 1]; ``mixRequested(int)`` the level split (also on a
     change of the split); ``crowdRequested(int, float)`` n and σ; ``invertRequested(str, int)`` the code
-    space ("W+" or "W") and the optimisation steps (0: the model's default).
+    space ("W+" or "W") and the optimisation steps (0: the model's default); ``editChanged(str, float)``
+    a direction's name and its slider's amount in spreads; ``editReset()`` the reset button.
     """
 
     truncationChanged = Signal(float)  # noqa: N815
     mixRequested = Signal(int)  # noqa: N815
     crowdRequested = Signal(int, float)  # noqa: N815
     invertRequested = Signal(str, int)  # noqa: N815
+    editChanged = Signal(str, float)  # noqa: N815
+    editReset = Signal()  # noqa: N815
 
     def __init__(self, parent: QWidget | None = None) -> None:
         super().__init__(parent)
@@ -83,10 +90,26 @@ class LatentToolsPanel(QWidget):
         )
         _row(self.invert_box, self.space_combo, self.steps_spin, self.invert_button)
 
+        self.edit_box = QGroupBox("Edit the last clicked code")
+        self.edit_note = QLabel()
+        self.edit_note.setWordWrap(True)
+        self.edit_grid = QGridLayout()
+        self.edit_reset = QPushButton("Reset")
+        self.edit_reset.setToolTip("Every slider back to 0: the unedited code plays")
+        self.edit_reset.clicked.connect(self.editReset.emit)
+        self.edit_sliders: dict[str, QSlider] = {}
+        self._edit_values: dict[str, QLabel] = {}
+        edit_column = _row(self.edit_box, self.edit_reset)
+        edit_column.insertLayout(0, self.edit_grid)
+        edit_column.insertWidget(0, self.edit_note)
+        self.set_directions([])
+        self.edit_box.setEnabled(False)  # until a model that edits is loaded
+        self.edit_box.setToolTip("Open a model with a latent bank to edit its codes")
+
         inner = QWidget()
         column = QVBoxLayout(inner)
         column.setContentsMargins(2, 2, 2, 2)
-        for box in (self.truncate_box, self.mix_box, self.crowd_box, self.invert_box):
+        for box in (self.truncate_box, self.mix_box, self.crowd_box, self.invert_box, self.edit_box):
             column.addWidget(box)
         column.addStretch(1)
         scroll = QScrollArea()  # a short dock scrolls instead of squeezing the boxes
@@ -113,6 +136,51 @@ class LatentToolsPanel(QWidget):
             self.mix_codes.setText(f"A: {a or '—'} · B: {b or '—'} (click two codes on the map)")
         else:
             self.mix_codes.setText(f"A (coarse): {a}\nB (fine): {b}")
+
+    def set_edit_note(self, text: str) -> None:
+        """Say above the edit sliders what they do (or why there are none yet)."""
+        self.edit_note.setText(text)
+
+    def set_directions(self, rows: list[tuple[str, str, str]]) -> None:
+        """One slider per edit direction, at 0: ``rows`` of (name, score text, tooltip)."""
+        while self.edit_grid.count():
+            self.edit_grid.takeAt(0).widget().deleteLater()
+        self.edit_sliders, self._edit_values = {}, {}
+        for k, (name, score, tip) in enumerate(rows):
+            label = QLabel(f"{name} ({score})")
+            slider = QSlider(Qt.Orientation.Horizontal)
+            slider.setRange(-EDIT_SPREADS * EDIT_STEPS, EDIT_SPREADS * EDIT_STEPS)
+            slider.setMinimumWidth(120)
+            value = QLabel()
+            for widget in (label, slider, value):
+                widget.setToolTip(tip)
+            slider.valueChanged.connect(lambda v, n=name: self._edit_moved(n, v))
+            self.edit_sliders[name], self._edit_values[name] = slider, value
+            self.edit_grid.addWidget(label, k, 0)
+            self.edit_grid.addWidget(slider, k, 1)
+            self.edit_grid.addWidget(value, k, 2)
+            self._show_amount(name)
+        self.edit_grid.setColumnStretch(1, 1)
+        self.edit_reset.setVisible(bool(rows))
+
+    def set_amounts(self, amounts: dict[str, float]) -> None:
+        """Put each slider at its amount in ``amounts`` (spreads; 0 when absent) without signalling."""
+        for name, slider in self.edit_sliders.items():
+            slider.blockSignals(True)
+            slider.setValue(round(amounts.get(name, 0.0) * EDIT_STEPS))
+            slider.blockSignals(False)
+            self._show_amount(name)
+
+    def edit_amount(self, name: str) -> float:
+        """The amount (spreads) the slider of direction ``name`` is at."""
+        return self.edit_sliders[name].value() / EDIT_STEPS
+
+    def _show_amount(self, name: str) -> None:
+        self._edit_values[name].setText(f"{self.edit_amount(name):+.1f}")
+
+    def _edit_moved(self, name: str, _value: int) -> None:
+        self._show_amount(name)
+        self.editChanged.emit(name, self.edit_amount(name))
 
     def _psi_changed(self) -> None:
         self.psi_label.setText(f"ψ {self.psi:.2f}")
