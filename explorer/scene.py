@@ -53,6 +53,8 @@ def short_label(item: Decoded, action_names: Sequence[str]) -> str:
     words = item.label.split(" · ")[0].split()
     steps = [w for w in words if "/" in w and not w.endswith((".bvh", ".npz"))]
     what = steps[-1] if steps else next((w for w in words if w.startswith("#")), "")
+    if words and words[0] == "edited":  # an edit plays beside its unedited code (see requests.EditDecode)
+        what = f"{what} edited"
     return f"{name} {what}".strip()
 
 

@@ -109,7 +109,7 @@ class LatentToolsPanel(QWidget):
         inner = QWidget()
         column = QVBoxLayout(inner)
         column.setContentsMargins(2, 2, 2, 2)
-        for box in (self.truncate_box, self.mix_box, self.crowd_box, self.invert_box, self.edit_box):
+        for box in (self.edit_box, self.truncate_box, self.mix_box, self.crowd_box, self.invert_box):
             column.addWidget(box)
         column.addStretch(1)
         scroll = QScrollArea()  # a short dock scrolls instead of squeezing the boxes
@@ -150,17 +150,16 @@ class LatentToolsPanel(QWidget):
             label = QLabel(f"{name} ({score})")
             slider = QSlider(Qt.Orientation.Horizontal)
             slider.setRange(-EDIT_SPREADS * EDIT_STEPS, EDIT_SPREADS * EDIT_STEPS)
-            slider.setMinimumWidth(120)
             value = QLabel()
             for widget in (label, slider, value):
                 widget.setToolTip(tip)
             slider.valueChanged.connect(lambda v, n=name: self._edit_moved(n, v))
+            value.setAlignment(Qt.AlignmentFlag.AlignRight)
             self.edit_sliders[name], self._edit_values[name] = slider, value
-            self.edit_grid.addWidget(label, k, 0)
-            self.edit_grid.addWidget(slider, k, 1)
-            self.edit_grid.addWidget(value, k, 2)
+            self.edit_grid.addWidget(label, 2 * k, 0)  # name and amount over the slider: a narrow dock
+            self.edit_grid.addWidget(value, 2 * k, 1)
+            self.edit_grid.addWidget(slider, 2 * k + 1, 0, 1, 2)
             self._show_amount(name)
-        self.edit_grid.setColumnStretch(1, 1)
         self.edit_reset.setVisible(bool(rows))
 
     def set_amounts(self, amounts: dict[str, float]) -> None:

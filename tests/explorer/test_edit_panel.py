@@ -8,6 +8,7 @@ import pytest
 
 from engine.generators import open_generator, refusal
 from explorer.capabilities import gate_tools
+from explorer.scene import short_label
 from tests.explorer.conftest import Opened
 from tests.explorer.gestures import click_map, isolated_points
 
@@ -53,6 +54,8 @@ def test_the_energy_slider_plays_the_engines_edit_of_the_clicked_code(
     np.testing.assert_allclose(original.motion.joints, decoded(g, code, action), atol=1e-5)
     assert not np.allclose(expected, original.motion.joints, atol=1e-3)  # the edit changes the motion
     assert c.state.edits == (("energy", 1.5),) and "energy +1.5" in edited.label
+    assert short_label(edited, g.label_names).endswith(" edited")  # over its skeleton
+    assert not short_label(original, g.label_names).endswith(" edited")
 
     # a second slider adds its own step: amount · spread · normal of each, summed
     style = next(name for name in directions if name.startswith("style="))
