@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Any, ClassVar
 
 import torch
 import torch.nn.functional as F  # noqa: N812
@@ -47,6 +48,8 @@ class ModiConfig(ModelConfig):
     shipped. ``n_actions``: actions of the training data (unused by the model, kept for labelling).
     ``foot_heights``: resting height (m) of each foot joint (``foot_joints`` order) in the training data,
     set when the model is saved; the decode-time foot clean-up needs them (empty: no clean-up).
+    ``root_velocity``: the root as horizontal velocity and height (MoDi's), else as positions
+    (``engine.model.modi_motion``).
     """
 
     n_joints: int
@@ -73,6 +76,7 @@ class ModiConfig(ModelConfig):
     epoch_size: int = 2048
     epochs: int = 160
     foot_heights: tuple[float, ...] = ()
+    root_velocity: bool = True
     arch: str = "modi"
 
     POSITIVE = ("n_joints", "window", "fps", "levels", "channels", "min_channels", "w_dim", "kernel", "lr")
@@ -81,6 +85,7 @@ class ModiConfig(ModelConfig):
     NON_NEGATIVE += ("epochs",)
     RATES = ("mixing", "w_avg_beta")
     ARCH = "modi"
+    BEFORE: ClassVar[dict[str, Any]] = {"root_velocity": False}  # the first models stored root positions
 
     def check(self) -> None:
         """A window that halves ``levels − 1`` times; an odd kernel."""
@@ -176,7 +181,7 @@ class ModiNetwork(nn.Module):
     def __init__(self, config: ModiConfig, skeleton: Skeleton, seed: int = 0):
         super().__init__()
         self.config = config
-        self.coder = MotionCoder(skeleton)
+        self.coder = MotionCoder(skeleton, config.root_velocity)
         levels = _hierarchy(config, skeleton)
         channels, frames = config.level_channels(), config.level_frames()
         self.mapping = nn.ModuleList(

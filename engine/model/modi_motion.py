@@ -1,8 +1,11 @@
 """MoDi's motion representation (paper §3.1) on a fixed skeleton, and its decoding to joint positions.
 
 Entities × features × frames, K = 6 features per entity: each joint's local rotation as 6D (the first two
-columns of its matrix), then the root displacement (x, y, z: the root position in the window's canonical
-frame) and one contact label (0 or 1) per foot joint, zero-padded to K. The network sees the features
+columns of its matrix), then the root displacement and one contact label (0 or 1) per foot joint,
+zero-padded to K. The root displacement is, as in MoDi, the root's horizontal velocity (x, z per frame)
+and its height (y, relative to frame 0) with ``root_velocity``; or, in models trained before it, the
+root position in the window's canonical frame (a GAN of those never learnt to walk: positions grow
+over the window and their statistics mix every frame's). The network sees the features
 normalised per entity and feature by the training windows' mean and standard deviation; features that
 are padding or constant in the data are held at zero. Joints come from forward kinematics of the data's
 skeleton (root offset zeroed: the displacement places the root).
@@ -26,8 +29,9 @@ CONSTANT_STD = 1e-4
 class MotionCoder(nn.Module):
     """Features of motions on ``skeleton`` and back: normalisation statistics and forward kinematics."""
 
-    def __init__(self, skeleton: Skeleton):
+    def __init__(self, skeleton: Skeleton, root_velocity: bool = True):
         super().__init__()
+        self.root_velocity = root_velocity
         self.parents = np.asarray(skeleton.parents)
         self.feet = foot_joints(skeleton)
         chain = sorted({a for f in self.feet for a in _ancestors(skeleton.parents, f)})
@@ -60,9 +64,21 @@ class MotionCoder(nn.Module):
         b, t = root.shape[:2]
         six = torch.cat([rotations[..., :, 0], rotations[..., :, 1]], -1)
         extra = root.new_zeros(b, t, 1 + len(self.feet), FEATURES)
-        extra[:, :, 0, :3] = root
+        extra[:, :, 0, :3] = self._displacement(root) if self.root_velocity else root
         extra[:, :, 1:, 0] = contacts
         return torch.cat([six, extra], 2).permute(0, 2, 3, 1)
+
+    @staticmethod
+    def _displacement(root: Tensor) -> Tensor:
+        """(B, T, 3) per-frame horizontal steps (frame 0: its own x, z) and the height of root positions."""
+        step = torch.diff(root, dim=1, prepend=torch.zeros_like(root[:, :1]))
+        return torch.stack([step[..., 0], root[..., 1], step[..., 2]], dim=-1)
+
+    @staticmethod
+    def _positions(displacement: Tensor) -> Tensor:
+        """Root positions (B, T, 3) of ``_displacement`` output: the horizontal steps summed up."""
+        summed = torch.cumsum(displacement, dim=1)
+        return torch.stack([summed[..., 0], displacement[..., 1], summed[..., 2]], dim=-1)
 
     @torch.no_grad()
     def set_statistics(self, raw: Tensor) -> None:
@@ -87,7 +103,8 @@ class MotionCoder(nn.Module):
         of network features (B, E, K, T)."""
         raw = self.denormalise(x).permute(0, 3, 1, 2)
         j = self.n_joints
-        return rotation_6d_to_matrix(raw[:, :, :j]), raw[:, :, j, :3], raw[:, :, j + 1 :, 0]
+        root = self._positions(raw[:, :, j, :3]) if self.root_velocity else raw[:, :, j, :3]
+        return rotation_6d_to_matrix(raw[:, :, :j]), root, raw[:, :, j + 1 :, 0]
 
     def joints(self, x: Tensor) -> Tensor:
         """(B, T, J, 3) joint positions of network features (B, E, K, T)."""

@@ -14,6 +14,7 @@ import torch.nn.functional as F  # noqa: N812
 from engine.errors import ConfigError, ModelFormatError
 from engine.model.modi import ModiConfig, ModiDiscriminator, ModiNetwork
 from engine.model.modi_losses import contact_losses, r1_penalty
+from engine.model.modi_motion import MotionCoder
 from engine.model.skeleton_conv import (
     SkeletalConv,
     neighbourhood,
@@ -289,7 +290,7 @@ def test_contact_losses(small_models: tuple[ModiNetwork, ModiDiscriminator]) -> 
         # contact label 1 everywhere (raw), and the root sliding at 1 m/s: fcon = speed² · s(1)
         raw = g.coder.denormalise(x)
         raw[:, first_contact:, 0] = 1.0
-        raw[:, g.coder.n_joints, 2] = torch.arange(16) / 20.0
+        raw[:, g.coder.n_joints, 2] = 1.0 / 20.0  # a step of 5 cm a frame (the root travels as velocity)
         saved = g.coder.feature_mask.clone()
         g.coder.feature_mask.copy_(g.coder.padding_mask)
         touch, fcon = contact_losses(g.coder, g.coder.normalise(raw), 20.0)
@@ -415,3 +416,22 @@ def test_epoch_loop_resumes_exactly(procedural_clips: list[Motion], tmp_path: Pa
     ):
         assert torch.equal(a, b), name
     assert int(resumed.counter.steps) == 4
+
+
+def test_the_root_travels_as_velocity_and_older_models_read_positions() -> None:
+    skeleton = procedural_skeleton()
+    rotations = torch.eye(3).expand(2, 6, skeleton.n_joints, 3, 3).clone()
+    root = torch.cumsum(torch.full((2, 6, 3), 0.25), dim=1)  # walking steadily forwards and rising
+    root[:, :, 1] = torch.linspace(0.0, 0.1, 6)
+    velocity, position = MotionCoder(skeleton, True), MotionCoder(skeleton, False)
+    contacts = torch.zeros(2, 6, len(velocity.feet))
+    raw = velocity.raw_features(rotations, root, contacts)
+    step = raw[:, skeleton.n_joints, :3].permute(0, 2, 1)
+    torch.testing.assert_close(step[:, 1:, 0], torch.full((2, 5), 0.25))  # x per frame, not position
+    torch.testing.assert_close(step[..., 1], root[..., 1])  # the height stays a height
+    torch.testing.assert_close(velocity.split(velocity.normalise(raw))[1], root)
+    raw_old = position.raw_features(rotations, root, contacts)
+    torch.testing.assert_close(position.split(position.normalise(raw_old))[1], root)
+    config = ModiConfig(n_joints=skeleton.n_joints).to_dict()
+    del config["root_velocity"]
+    assert ModiConfig.from_dict(config).root_velocity is False and ModiConfig(n_joints=3).root_velocity
