@@ -73,12 +73,13 @@ class Editing:
             if current():
                 self.c.state.edit_directions = found
 
-        def failed(exc: BaseException) -> None:
+        def failed(why: BaseException | str) -> None:
             if current():
-                panel.set_edit_note(f"No edit directions: {exc}")
-                self.c.window.show_status(f"No edit directions: {exc}")
+                panel.set_edit_note(f"No edit directions: {why}")
+                self.c.window.show_status(f"No edit directions: {why}")
 
-        self.c.tasks.run("Finding edit directions", job, done, failed)
+        task = self.c.tasks.run("Finding edit directions", job, done, failed)
+        task.cancelled.connect(lambda: failed("finding them was cancelled; open the model again to retry"))
 
     def _directions_changed(self, found: tuple[EditDirection, ...]) -> None:
         panel = self.c.window.latent_panel

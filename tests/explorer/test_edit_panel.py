@@ -3,10 +3,13 @@ clicked bank code and checked against the engine's own edit; off, saying why, wh
 
 from __future__ import annotations
 
+import threading
+
 import numpy as np
 import pytest
 
 from engine.generators import open_generator, refusal
+from engine.generators.base import FolderGenerator
 from explorer.capabilities import gate_tools
 from explorer.scene import short_label
 from tests.explorer.conftest import Opened
@@ -103,3 +106,21 @@ def test_the_edit_panel_is_off_for_a_model_that_cannot_edit(qtbot, open_explorer
     off = gate_tools(opened.window, generator)  # as the loader gates a loaded model
     assert off["edit_box"] == str(refusal(generator, "edit")) == panel.edit_box.toolTip()
     assert not panel.edit_box.isEnabled() and "cannot edit" in panel.edit_box.toolTip()
+
+
+def test_a_cancelled_search_for_directions_says_so(qtbot, open_explorer, tiny_modi_dir, monkeypatch) -> None:
+    cancelled = threading.Event()
+
+    def found_after_the_cancel(generator) -> dict:  # the search ends only once Cancel was clicked
+        assert cancelled.wait(60)
+        return {}
+
+    monkeypatch.setattr(FolderGenerator, "edit_directions", property(found_after_the_cancel))
+    opened = open_explorer(tiny_modi_dir, wait=False)
+    c, panel = opened.controller, opened.window.latent_panel
+    qtbot.waitUntil(lambda: any(t.title == "Finding edit directions" for t in c.tasks.active), timeout=60_000)
+    assert "Finding the edit directions" in panel.edit_note.text()
+    opened.window.cancel_button.click()
+    cancelled.set()
+    qtbot.waitUntil(lambda: not c.tasks.active, timeout=60_000)
+    assert "cancelled" in panel.edit_note.text() and not panel.edit_sliders and not c.state.edit_directions
