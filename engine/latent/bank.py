@@ -215,8 +215,10 @@ def build_bank(
     seed: int = 0,
     progress: Callable[[str, float], None] | None = None,
     cancel: Callable[[], bool] | None = None,
+    covariance: str = "full",
 ) -> LatentBank:
-    """Discover each action's modes and fit the 2D maps of codes (N, D); progress(message, fraction 0..1)."""
+    """Discover each action's modes (``covariance``: full or diagonal Gaussians) and fit the 2D maps of
+    codes (N, D); progress(message, fraction 0..1)."""
     bank = LatentBank(
         codes=np.asarray(codes, dtype=np.float32),
         actions=np.asarray(actions, dtype=np.int64),
@@ -241,7 +243,8 @@ def build_bank(
 
     for action in present:
         step(f"modes of {bank.action_names[action]}")
-        bank.modes[action] = ModeModel(k_range=k_range, seed=seed).fit(bank.codes[bank.indices_of(action)])
+        model = ModeModel(k_range=k_range, seed=seed, covariance=covariance)
+        bank.modes[action] = model.fit(bank.codes[bank.indices_of(action)])
     for name, projection in maps.items():
         step(f"{name} map")
         bank.projections[name] = projection.fit(bank.codes)

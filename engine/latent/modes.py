@@ -18,6 +18,7 @@ from engine.errors import ConfigError, ModelFormatError
 log = logging.getLogger(__name__)
 
 STRATEGIES = ("mode_preserving", "conventional", "mode", "weights")
+COVARIANCES = ("full", "diag")
 REG_COVAR = 1e-6  # added to every covariance diagonal, as sklearn's GaussianMixture does by default
 
 
@@ -28,12 +29,13 @@ class ModeModel(BaseEstimator):
     Parameters: ``k_range`` (inclusive) of mixture sizes tried, the ``ratio`` of :func:`choose_k`,
     ``min_members`` a component needs to be kept, the ``seed``, and ``silhouette_sample`` (silhouettes of
     more codes are estimated on a seeded subsample; None: always exact). ``k_range=(1, 1)`` fits one
-    Gaussian (e.g. a local mode of a selection).
+    Gaussian (e.g. a local mode of a selection). ``covariance`` "diag" fits axis-aligned Gaussians, for
+    codes of hundreds of dimensions (MoDi's W), whose full covariances would weigh D² numbers a mode.
 
     Fitted attributes
     -----------------
     weights_ : (K,) mixture weights, renormalised after dropping small components.
-    means_ : (K, D); covariances_ : (K, D, D) full.
+    means_ : (K, D); covariances_ : (K, D, D) (diagonal ones held as full matrices; stored as diagonals).
     labels_ : (N,) mode index of each fitted code.
     silhouette_ : every K tried -> silhouette score (nan where undefined or not fitted).
     k_chosen_ : the K the selection rule picked, before dropping (1 when no K could be scored).
@@ -57,12 +59,14 @@ class ModeModel(BaseEstimator):
         min_members: int = 10,
         seed: int = 0,
         silhouette_sample: int | None = 5000,
+        covariance: str = "full",
     ) -> None:
         self.k_range = k_range
         self.ratio = ratio
         self.min_members = min_members
         self.seed = seed
         self.silhouette_sample = silhouette_sample
+        self.covariance = covariance
 
     def fit(self, codes: np.ndarray) -> Self:
         """Fit to one action's codes (N, D): a GMM for every K in ``k_range`` scored by silhouette, K
@@ -77,19 +81,23 @@ class ModeModel(BaseEstimator):
             raise ConfigError(f"k_range must satisfy 1 <= min <= max, got {self.k_range}")
         if not self.ratio > 0.0:
             raise ConfigError(f"ratio must be positive, got {self.ratio}")
+        if self.covariance not in COVARIANCES:
+            raise ConfigError(f"covariance must be one of {', '.join(COVARIANCES)}, got {self.covariance!r}")
         fits: dict[int, GaussianMixture] = {}
         scores: dict[int, float] = {}
         for k in range(k_min, k_max + 1):
             if k == 1 or k > len(x):  # one cluster has no silhouette
                 scores[k] = float("nan")
                 continue
-            fits[k] = _fit_gmm(x, k, self.seed)
+            fits[k] = _fit_gmm(x, k, self.seed, self.covariance)
             scores[k] = _silhouette(x, fits[k].predict(x), self.silhouette_sample, self.seed)
         chosen = choose_k(scores, self.ratio)
         self.silhouette_, self.k_chosen_ = scores, 1 if chosen is None else chosen
         self.conventional_mean_ = x.mean(axis=0)
         dim = x.shape[1]
         cov = np.cov(x, rowvar=False, bias=True).reshape(dim, dim) + REG_COVAR * np.eye(dim)
+        if self.covariance == "diag":
+            cov = np.diag(np.diag(cov))
         self.conventional_cov_ = cov
         keep = np.array([], dtype=np.int64)
         if chosen is not None:
@@ -102,7 +110,10 @@ class ModeModel(BaseEstimator):
             self.means_, self.covariances_ = self.conventional_mean_[None], cov[None]
         else:
             self.weights_ = gmm.weights_[keep] / gmm.weights_[keep].sum()
-            self.means_, self.covariances_ = gmm.means_[keep], gmm.covariances_[keep]
+            covariances = gmm.covariances_[keep]
+            if self.covariance == "diag":
+                covariances = np.stack([np.diag(c) for c in covariances])
+            self.means_, self.covariances_ = gmm.means_[keep], covariances
         self.labels_ = np.zeros(len(x), dtype=np.int64)
         if self.n_modes_ > 1:
             self.labels_ = self.predict(x)
@@ -205,22 +216,29 @@ class ModeModel(BaseEstimator):
     def to_arrays(self, prefix: str) -> dict[str, np.ndarray]:
         """Plain arrays (no objects) under keys starting with ``prefix``."""
         ks = sorted(self.silhouette_)
+        diagonal = self.covariance == "diag"
+        covariances = np.diagonal(self.covariances_, axis1=1, axis2=2) if diagonal else self.covariances_
+        conventional = np.diag(self.conventional_cov_) if diagonal else self.conventional_cov_
         return {
             f"{prefix}weights": self.weights_,
             f"{prefix}means": self.means_,
-            f"{prefix}covariances": self.covariances_,
+            f"{prefix}covariance": np.asarray(self.covariance),
+            f"{prefix}covariances": covariances,
             f"{prefix}labels": self.labels_,
             f"{prefix}silhouette_k": np.asarray(ks, dtype=np.int64),
             f"{prefix}silhouette_score": np.asarray([self.silhouette_[k] for k in ks], dtype=np.float64),
             f"{prefix}k_chosen": np.asarray(self.k_chosen_, dtype=np.int64),
             f"{prefix}conventional_mean": self.conventional_mean_,
-            f"{prefix}conventional_cov": self.conventional_cov_,
+            f"{prefix}conventional_cov": conventional,
         }
 
     @classmethod
     def from_arrays(cls, prefix: str, arrays: dict[str, np.ndarray]) -> ModeModel:
         """Rebuild from :meth:`to_arrays` output; ModelFormatError for missing keys or bad shapes."""
-        model = cls()
+        covariance = str(arrays.get(f"{prefix}covariance", "full"))  # banks before the option are full
+        if covariance not in COVARIANCES:
+            raise ModelFormatError(f"mode model {prefix!r}: unknown covariance {covariance!r}")
+        model = cls(covariance=covariance)
         try:
             model.weights_ = arrays[f"{prefix}weights"]
             model.means_ = arrays[f"{prefix}means"]
@@ -231,6 +249,9 @@ class ModeModel(BaseEstimator):
             model.k_chosen_ = int(arrays[f"{prefix}k_chosen"])
             model.conventional_mean_ = arrays[f"{prefix}conventional_mean"]
             model.conventional_cov_ = arrays[f"{prefix}conventional_cov"]
+            if covariance == "diag":
+                model.covariances_ = np.stack([np.diag(c) for c in model.covariances_])
+                model.conventional_cov_ = np.diag(model.conventional_cov_)
         except KeyError as exc:
             raise ModelFormatError(f"mode model is missing {exc.args[0]!r}") from exc
         except (TypeError, ValueError) as exc:
@@ -278,9 +299,9 @@ def choose_k(scores: dict[int, float], ratio: float = 0.95) -> int | None:
     return max(ks, key=lambda k: scores[k]) if ks else None
 
 
-def _fit_gmm(x: np.ndarray, k: int, seed: int) -> GaussianMixture:
-    """A full-covariance mixture of ``k`` Gaussians; non-convergence is logged, not raised."""
-    gmm = GaussianMixture(n_components=k, covariance_type="full", reg_covar=REG_COVAR, random_state=seed)
+def _fit_gmm(x: np.ndarray, k: int, seed: int, covariance: str = "full") -> GaussianMixture:
+    """A mixture of ``k`` Gaussians (full or diagonal covariances); non-convergence is logged, not raised."""
+    gmm = GaussianMixture(n_components=k, covariance_type=covariance, reg_covar=REG_COVAR, random_state=seed)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", ConvergenceWarning)
         gmm.fit(x)

@@ -170,7 +170,8 @@ def test_mode_model_is_a_scikit_learn_estimator(three: tuple[np.ndarray, np.ndar
     codes, _, fitted = three
     fresh = clone(ModeModel(k_range=(3, 5), seed=7))
     assert fresh.get_params() == {
-        "k_range": (3, 5), "ratio": 0.95, "min_members": 10, "seed": 7, "silhouette_sample": 5000
+        "k_range": (3, 5), "ratio": 0.95, "min_members": 10, "seed": 7, "silhouette_sample": 5000,
+        "covariance": "full",
     }  # fmt: skip
     with pytest.raises(NotFittedError):
         check_is_fitted(fresh)
@@ -184,3 +185,27 @@ def test_one_gaussian_mode_model_fits_no_mixture() -> None:
     assert model.n_modes_ == 1 and model.k_chosen_ == 1 and np.isnan(model.silhouette_[1])
     np.testing.assert_allclose(model.means_[0], codes.mean(axis=0))
     np.testing.assert_array_equal(model.labels_, np.zeros(50))
+
+
+def test_diagonal_modes_fit_sample_and_store_only_their_diagonals() -> None:
+    rng = np.random.default_rng(0)
+    centres = np.array([[0.0] * 40, [6.0] * 40])
+    codes = np.concatenate([c + rng.standard_normal((150, 40)) * np.linspace(0.5, 1.5, 40) for c in centres])
+    model = ModeModel(k_range=(2, 3), covariance="diag").fit(codes)
+    assert model.n_modes_ == 2
+    for cov in (*model.covariances_, model.conventional_cov_):
+        np.testing.assert_array_equal(cov, np.diag(np.diag(cov)))  # axis-aligned
+    spread = np.sqrt(np.diag(model.covariances_[0]))
+    np.testing.assert_allclose(spread, np.linspace(0.5, 1.5, 40), rtol=0.25)
+    arrays = model.to_arrays("m/")
+    assert arrays["m/covariances"].shape == (2, 40) and arrays["m/conventional_cov"].shape == (40,)
+    again = ModeModel.from_arrays("m/", arrays)
+    np.testing.assert_array_equal(again.covariances_, model.covariances_)
+    np.testing.assert_array_equal(again.predict(codes), model.predict(codes))
+    drawn, _ = again.sample(500, np.random.default_rng(1))
+    assert drawn.shape == (500, 40) and again.problem() is None
+    full = ModeModel(k_range=(2, 2)).fit(codes).to_arrays("f/")
+    del full["f/covariance"]  # a bank written before the option: full covariances
+    assert ModeModel.from_arrays("f/", full).covariance == "full"
+    with pytest.raises(ConfigError, match="covariance must be one of"):
+        ModeModel(covariance="spherical").fit(codes)
