@@ -118,9 +118,11 @@ def test_a_cancelled_search_for_directions_says_so(qtbot, open_explorer, tiny_mo
     monkeypatch.setattr(FolderGenerator, "edit_directions", property(found_after_the_cancel))
     opened = open_explorer(tiny_modi_dir, wait=False)
     c, panel = opened.controller, opened.window.latent_panel
-    qtbot.waitUntil(lambda: any(t.title == "Finding edit directions" for t in c.tasks.active), timeout=60_000)
+    qtbot.waitUntil(
+        lambda: any(t.title == "Finding edit directions" for t in c.tasks.active), timeout=120_000
+    )
     assert "Finding the edit directions" in panel.edit_note.text()
     opened.window.cancel_button.click()
     cancelled.set()
-    qtbot.waitUntil(lambda: not c.tasks.active, timeout=60_000)
+    qtbot.waitUntil(lambda: not c.tasks.active, timeout=120_000)
     assert "cancelled" in panel.edit_note.text() and not panel.edit_sliders and not c.state.edit_directions
