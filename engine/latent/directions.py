@@ -10,15 +10,17 @@ from typing import Any
 
 import numpy as np
 from sklearn.linear_model import RidgeCV
-from sklearn.model_selection import cross_val_score
+from sklearn.model_selection import KFold, StratifiedKFold, cross_val_score
 from sklearn.svm import LinearSVC
 
 from engine.errors import ConfigError
 
 #: Fewest codes a label needs on each side of its SVM.
 MIN_PER_LABEL = 5
-#: Folds of the cross-validated score each direction reports.
+#: Folds of the cross-validated score each direction reports, shuffled with this seed (a bank is stored
+#: in clip order, so unshuffled folds would each hold out whole actions).
 FOLDS = 3
+FOLD_SEED = 0
 
 
 @dataclass(frozen=True)
@@ -53,8 +55,8 @@ def _unit(vector: np.ndarray) -> np.ndarray:
     return (vector / norm).astype(np.float32)
 
 
-def _folds(counts: np.ndarray) -> int:
-    return int(min(FOLDS, counts.min()))
+def _label_folds(counts: np.ndarray) -> StratifiedKFold:
+    return StratifiedKFold(int(min(FOLDS, counts.min())), shuffle=True, random_state=FOLD_SEED)
 
 
 def label_directions(
@@ -74,7 +76,8 @@ def label_directions(
         if counts.min() < min_per_label:
             continue
         svm = LinearSVC(C=1.0, class_weight="balanced", max_iter=20_000)
-        score = cross_val_score(svm, x[holders], y, cv=_folds(counts), scoring="balanced_accuracy").mean()
+        folds = _label_folds(counts)
+        score = cross_val_score(svm, x[holders], y, cv=folds, scoring="balanced_accuracy").mean()
         normal = _unit(svm.fit(x[holders], y).coef_[0])
         spread = float(np.std(x[holders] @ normal))
         out.append(EditDirection(f"{key}={value}", normal, spread, float(score), len(holders)))
@@ -88,7 +91,8 @@ def attribute_direction(codes: np.ndarray, values: np.ndarray, name: str) -> Edi
     if x.ndim != 2 or y.shape != (len(x),) or len(x) < 2 * FOLDS or not np.all(np.isfinite(y)):
         raise ConfigError(f"{name}: need (N, D) codes and N finite values, N >= {2 * FOLDS}")
     ridge = RidgeCV(alphas=np.logspace(-3, 3, 13))
-    score = cross_val_score(ridge, x, y, cv=FOLDS, scoring="r2").mean()
+    folds = KFold(FOLDS, shuffle=True, random_state=FOLD_SEED)
+    score = cross_val_score(ridge, x, y, cv=folds, scoring="r2").mean()
     normal = _unit(ridge.fit(x, y).coef_)
     return EditDirection(name, normal, float(np.std(x @ normal)), float(score), len(x))
 

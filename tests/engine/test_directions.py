@@ -161,3 +161,15 @@ def test_edit_effect_sees_a_style_edit_with_a_style_classifier(
     assert effect.after > back.after  # towards the style raises its probability more than away from it
     with pytest.raises(ConfigError, match="the style classifier knows"):
         edit_effect(generator, bank.codes[rows], actions, "style=nope", 1.0, style_clf, action_clf)
+
+
+def test_scores_do_not_depend_on_the_order_codes_are_stored_in() -> None:
+    rng = np.random.default_rng(4)
+    codes = rng.standard_normal((300, 5))
+    values = codes @ np.array([1.0, 0.5, 0.0, 0.0, -1.0])
+    order = np.argsort(values)  # a bank stored by clip runs through its attribute in order
+    assert attribute_direction(codes[order], values[order], "speed").score > 0.99
+    labels = np.where(codes[:, 0] > 0, "a", "b")
+    meta = [{"style": str(v)} for v in labels[np.argsort(labels)]]
+    [a, _] = label_directions(codes[np.argsort(labels)], meta, "style")
+    assert a.score > 0.9
