@@ -72,8 +72,8 @@ def test_the_energy_direction_makes_decoded_motions_move_more(fixture: str, requ
     more = 0
     for i in rows:
         action = None if generator.action_names is None else bank.action_names[int(bank.actions[i])]
-        up = generator.edit(bank.codes[i], action, "energy", 2.0).motion.joints
-        down = generator.edit(bank.codes[i], action, "energy", -2.0).motion.joints
+        up = generator.edit(bank.codes[i], action, "energy", 3.0).motion.joints  # the panel's full range
+        down = generator.edit(bank.codes[i], action, "energy", -3.0).motion.joints
         more += motion_energy(up[None], generator.fps)[0] > motion_energy(down[None], generator.fps)[0]
     assert more >= 10, f"{more} of 12 edits raised the energy"
     with pytest.raises(ConfigError, match="no edit direction 'style=nope'"):
