@@ -7,7 +7,7 @@ import contextlib
 import json
 import re
 import sys
-from collections.abc import Iterator, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -160,12 +160,25 @@ def _dataset(args: argparse.Namespace) -> Dataset:
     return load_folder(args.data, pattern=args.pattern, labels=args.labels, up_axis=args.up_axis)
 
 
-def _cmd_train(args: argparse.Namespace) -> int:
-    from engine.model.a2m import A2mConfig
+def _trainer(arch: str) -> tuple[type, Callable[..., Any]]:
+    """The config class and the ``train`` function of a kind (imported here: they bring in torch)."""
+    if arch == "a2m":
+        from engine.model.a2m import A2mConfig
+        from engine.train.a2m_loop import train_a2m
+
+        return A2mConfig, train_a2m
+    if arch == "modi":
+        from engine.model.modi import ModiConfig
+        from engine.train.modi_loop import train_modi
+
+        return ModiConfig, train_modi
     from engine.model.config import OdmoConfig
-    from engine.train.a2m_loop import train_a2m
     from engine.train.loop import train
 
+    return OdmoConfig, train
+
+
+def _cmd_train(args: argparse.Namespace) -> int:
     if args.out.exists() and not args.out.is_dir():
         raise ConfigError(f"{args.out}: exists and is not a folder; --out names the model folder to write")
     dataset = _dataset(args)
@@ -173,9 +186,7 @@ def _cmd_train(args: argparse.Namespace) -> int:
     fields |= config_overrides(args.set)
     if args.epochs is not None:
         fields["epochs"] = args.epochs
-    config_type, extra = (
-        (A2mConfig, {}) if args.arch == "a2m" else (OdmoConfig, {"bank_projections": args.projections})
-    )
+    config_type, train = _trainer(args.arch)
     try:
         config = config_type(**fields)
     except TypeError as exc:
@@ -183,7 +194,7 @@ def _cmd_train(args: argparse.Namespace) -> int:
     progress = TqdmProgress()
     try:
         with folder_lock(args.out, "training a model"):
-            result = (train_a2m if args.arch == "a2m" else train)(
+            result = train(
                 dataset.clips,
                 dataset.action_names,
                 args.out,
@@ -192,7 +203,7 @@ def _cmd_train(args: argparse.Namespace) -> int:
                 device=args.device,
                 resume=args.resume,
                 progress=progress,
-                **extra,
+                bank_projections=args.projections,
             )
     finally:
         progress.close()
@@ -322,7 +333,7 @@ def _data_arguments(p: argparse.ArgumentParser) -> None:
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     """Add the model sub-commands to ``odmo``."""
-    p = subparsers.add_parser("train", help="train an ODMO model on a folder of labelled clips")
+    p = subparsers.add_parser("train", help="train a model (ODMO, Action2Motion, MoDi) on labelled clips")
     _data_arguments(p)
     p.add_argument("--out", type=Path, required=True, help="model folder to write")
     p.add_argument("--epochs", type=int, default=None, help="epochs of 2,048 windows (default: config's)")
@@ -330,7 +341,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--resume", action="store_true", help="continue from the folder's last checkpoint")
     p.add_argument(
-        "--arch", default="odmo", choices=("odmo", "a2m"), help="odmo, or the Action2Motion-style baseline"
+        "--arch", default="odmo", choices=("odmo", "a2m", "modi"), help="odmo (default), a2m or modi"
     )
     p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", help="any model setting")
     p.set_defaults(func=_cmd_train)

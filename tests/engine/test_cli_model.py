@@ -244,3 +244,20 @@ def test_train_a2m_baseline_writes_a_loadable_model(odmo, data_dir, tmp_path):
     assert odmo(*argv, *settings) == 0
     loaded = load_a2m(out)
     assert loaded.config.hidden == 8 and loaded.action_names == ["jump", "walk", "wave"]
+
+
+@pytest.mark.slow
+def test_train_modi_writes_a_model_that_samples_without_an_action(odmo, data_dir, tmp_path):
+    from engine.generators import SampleRequest, open_generator
+
+    small = ("levels=3", "window=16", "channels=16", "min_channels=8", "w_dim=16", "mapping_layers=2",
+             "batch_size=4", "epoch_size=8")  # fmt: skip
+    settings = [x for s in small for x in ("--set", s)]
+    out = tmp_path / "modi"
+    argv = ["train", "--arch", "modi", "--data", data_dir, "--pattern", PATTERN, "--out", out, "--epochs", 1]
+    assert odmo(*argv, *settings, "--projections", "pca") == 0
+    generator = open_generator(out)
+    assert generator.kind == "modi" and generator.label_names == ["jump", "walk", "wave"]
+    assert generator.bank is not None and generator.code_space.size == 16
+    [sample] = generator.sample(SampleRequest(None, 1, 0))
+    assert sample.motion.joints.shape[0] == 16
