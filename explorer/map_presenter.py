@@ -83,10 +83,12 @@ class MapPresenter:
         bank = self.c.bank
         colors = point_colors(bank, self.c.state.color_by, self.energy)
         drawn = self.drawn
-        if drawn is None or not (np.array_equal(drawn[0], embedding) and np.array_equal(drawn[1], colors)):
-            # (the preview painted at start-up usually is this very map: then nothing is redrawn)
+        # (the preview painted at start-up usually is this very map: then nothing is redrawn)
+        if drawn is None or not np.array_equal(drawn[0], embedding):
             lmap.set_points(embedding, colors, np.arange(len(bank.codes)), self._tooltips(bank))
-            self.drawn = (embedding, colors)
+        elif not np.array_equal(drawn[1], colors):
+            lmap.set_colors(colors)  # a new colouring keeps the view
+        self.drawn = (embedding, colors)
         if self.c.state.hidden_actions:  # set_points shows every point
             self.apply_visibility(self.c.state.hidden_actions)
         if self.c.state.selection or drawn is not None:

@@ -1,4 +1,10 @@
-"""LatentMap: a 2-D scatter of latent codes with picking, dragging, lasso, overlays and a legend."""
+"""LatentMap: a 2-D map of latent codes with picking, dragging, lasso, overlays and a legend.
+
+The codes are drawn as one image rasterised with numpy (``widgets._raster``): discs when few lie in the
+rendered region, a density image when many do. Pan and zoom move that image; it is rendered again,
+deferred, once the view leaves its margin or the zoom changes its pixel size by more than
+``RERENDER_ZOOM``. Picking goes through a k-d tree built once per ``set_points``.
+"""
 
 from __future__ import annotations
 
@@ -7,7 +13,7 @@ from typing import Literal
 
 import numpy as np
 import pyqtgraph as pg
-from PySide6.QtCore import QEvent, QObject, QPointF, Qt, Signal
+from PySide6.QtCore import QEvent, QObject, QPointF, QRectF, Qt, QTimer, Signal
 from PySide6.QtGui import QImage, QPixmap
 from PySide6.QtWidgets import (
     QButtonGroup,
@@ -20,14 +26,46 @@ from PySide6.QtWidgets import (
     QVBoxLayout,
     QWidget,
 )
+from scipy.spatial import cKDTree
 
 from widgets._colors import FOREGROUND, SELECTION, brushes_for, configure_plot, qcolor, to_rgba8
+from widgets._raster import Grid, density, discs
 
 Tool = Literal["pick", "lasso"]
+Tooltips = Sequence[str] | Callable[[int], str]
+
+MARGIN = 0.25  # the image covers the view and this fraction of its size on every side
+RERENDER_ZOOM = 1.5  # render again once the pixel size differs from the image's by this factor
+MAX_SIDE = 8192  # pixels: a cap on the image for odd view sizes
 
 
 class PassiveScatter(pg.ScatterPlotItem):
     """A scatter item that lets clicks through to the view box (which does its own picking)."""
+
+    def mouseClickEvent(self, ev: object) -> None:  # noqa: N802
+        """Ignore the click so the view box receives it."""
+        ev.ignore()  # type: ignore[attr-defined]
+
+
+class PointsImage(pg.ImageItem):
+    """The map's points as one image in data coordinates; auto-range frames the points, not the image."""
+
+    def __init__(self) -> None:
+        super().__init__(axisOrder="row-major")
+        self.bounds: tuple[tuple[float, float], tuple[float, float]] | None = None
+        self.padding_px = 0.0
+
+    def dataBounds(self, ax: int, frac: float = 1.0, orthoRange: object = None) -> tuple[float, float] | None:  # noqa: N802
+        """The (min, max) along axis ``ax`` of the shown points in the image's coordinates (None: none)."""
+        if self.bounds is None:
+            return None
+        (x0, x1), (y0, y1) = self.bounds
+        rect = self.transform().inverted()[0].mapRect(QRectF(x0, y0, x1 - x0, y1 - y0))
+        return (rect.left(), rect.right()) if ax == 0 else (rect.top(), rect.bottom())
+
+    def pixelPadding(self) -> float:  # noqa: N802
+        """Pixels beyond the points' centres that auto-range keeps in view (the disc radius)."""
+        return self.padding_px
 
     def mouseClickEvent(self, ev: object) -> None:  # noqa: N802
         """Ignore the click so the view box receives it."""
@@ -87,10 +125,11 @@ class _FileDrops(QObject):
 
 
 class LatentMap(QWidget):
-    """A 2-D map of points (one scatter item) that reports clicks, drags, lassos and hovers.
+    """A 2-D map of points (one rasterised image) that reports clicks, drags, lassos and hovers.
 
     Point positions passed to ``set_visible_mask`` / ``set_selection`` are row indices into the
-    arrays given to ``set_points``; signals report the per-point ``ids``.
+    arrays given to ``set_points``; signals report the per-point ``ids``. More than ``density_above``
+    shown points in the rendered region are drawn as a density image instead of discs.
     """
 
     pointClicked = Signal(int)  # noqa: N815
@@ -105,16 +144,26 @@ class LatentMap(QWidget):
     extraClicked = Signal(int)  # noqa: N815
 
     def __init__(
-        self, parent: QWidget | None = None, *, point_size: float = 6.0, pick_tolerance_px: float = 8.0
+        self,
+        parent: QWidget | None = None,
+        *,
+        point_size: float = 6.0,
+        pick_tolerance_px: float = 8.0,
+        density_above: int = 50_000,
     ) -> None:
         super().__init__(parent)
         self._tolerance_px = float(pick_tolerance_px)
+        self._point_size = float(point_size)
+        self._density_above = int(density_above)
         self._tool: Tool = "pick"
         self._xy = np.zeros((0, 2))
         self._ids = np.zeros(0, dtype=np.int64)
-        self._brushes = np.zeros(0, dtype=object)
-        self._tooltips: list[str] = []
+        self._rgba = np.zeros((0, 4), dtype=np.uint8)
+        self._tree: cKDTree | None = None
+        self._tooltips: Tooltips = []
         self._mask = np.zeros(0, dtype=bool)
+        self._visible = np.zeros(0, dtype=bool)
+        self._grid: Grid | None = None  # where the image was rendered
         self._groups: np.ndarray | None = None
         self._hidden_groups: set[int] = set()
         self._shown = np.zeros(0, dtype=np.int64)
@@ -130,7 +179,12 @@ class LatentMap(QWidget):
         self._drops = _FileDrops(self.filesDropped.emit, self)
         self.plot.viewport().installEventFilter(self._drops)
         self.view_box.setAspectLocked(True)  # one map unit is as long across as up
-        self.scatter = PassiveScatter(pxMode=True, size=point_size, pen=None, symbol="o")
+        self.points_image = PointsImage()
+        self.points_image.padding_px = self._point_size / 2
+        self._render_timer = QTimer(self, singleShot=True, interval=0)
+        self._render_timer.timeout.connect(self._render)
+        self.view_box.sigRangeChanged.connect(self._view_changed)
+        self.view_box.sigResized.connect(self._view_changed)
         self._highlight = PassiveScatter(
             pxMode=True, size=point_size + 8, pen=pg.mkPen(SELECTION, width=2), brush=None, symbol="o"
         )
@@ -140,7 +194,7 @@ class LatentMap(QWidget):
         self._overlays: list[pg.PlotCurveItem] = []
         self._paths: list[pg.PlotCurveItem] = []
         self._halos: list[pg.PlotCurveItem] = []
-        layers = (self.scatter, self._highlight, self._extra, self._marker, self._lasso_curve)
+        layers = (self.points_image, self._highlight, self._extra, self._marker, self._lasso_curve)
         for z, item in enumerate(layers):
             item.setZValue(10 + z)
             self.view_box.addItem(item)
@@ -186,9 +240,13 @@ class LatentMap(QWidget):
 
     # ----- data ---------------------------------------------------------------------------------
     def set_points(
-        self, xy: np.ndarray, colors: np.ndarray, ids: np.ndarray, tooltips: Sequence[str] | None = None
+        self, xy: np.ndarray, colors: np.ndarray, ids: np.ndarray, tooltips: Tooltips | None = None
     ) -> None:
-        """Show points ``xy`` (N, 2) coloured by ``colors`` (N, 3|4) and identified by ``ids`` (N,) int."""
+        """Show points ``xy`` (N, 2) coloured by ``colors`` (N, 3|4) and identified by ``ids`` (N,) int.
+
+        ``tooltips`` are N hover texts, or a function of the row giving its text (no list of N strings
+        to build for a large map).
+        """
         xy = np.asarray(xy, dtype=np.float64)
         if xy.ndim != 2 or xy.shape[1] != 2:
             raise ValueError(f"xy must have shape (N, 2), got {xy.shape}")
@@ -196,19 +254,27 @@ class LatentMap(QWidget):
         ids = np.asarray(ids, dtype=np.int64).reshape(-1)
         if ids.shape != (n,):
             raise ValueError(f"ids must have shape ({n},), got {ids.shape}")
-        tips = list(tooltips) if tooltips is not None else [""] * n
-        if len(tips) != n:
-            raise ValueError(f"expected {n} tooltips, got {len(tips)}")
-        self._brushes = brushes_for(to_rgba8(colors, n))
-        self._xy, self._ids, self._tooltips = xy, ids, tips
+        if tooltips is None:
+            tooltips = [""] * n
+        elif not callable(tooltips) and len(tooltips) != n:
+            raise ValueError(f"expected {n} tooltips, got {len(tooltips)}")
+        self._rgba = to_rgba8(colors, n)
+        self._xy, self._ids, self._tooltips = xy, ids, tooltips
+        # an unbalanced tree builds in half the time and answers a pick as fast
+        self._tree = cKDTree(xy, balanced_tree=False, compact_nodes=False) if n else None
         self._mask = np.ones(n, dtype=bool)
         self._groups = None
         self._hidden_groups.clear()
         self._selection = np.zeros(0, dtype=np.int64)
         self._hover_row = -1
-        self._refresh_points()
-        self._highlight.setData(x=[], y=[])
-        self.view_box.autoRange(items=[self.scatter])  # frame the points, not stale overlays
+        self._update_shown()
+        self.view_box.autoRange(items=[self.points_image])  # frame the points, not stale overlays
+        self._render()
+
+    def set_colors(self, colors: np.ndarray) -> None:
+        """Recolour the points with ``colors`` (N, 3|4), keeping the view, the mask and the selection."""
+        self._rgba = to_rgba8(colors, len(self._xy))
+        self._render()
 
     def set_visible_mask(self, mask: np.ndarray) -> None:
         """Show only the points where ``mask`` (N,) bool is true."""
@@ -281,7 +347,7 @@ class LatentMap(QWidget):
 
     def point_colors(self) -> np.ndarray:
         """(N, 4) uint8 RGBA of the points as drawn (before hover, selection or hiding)."""
-        return np.array([b.color().getRgb() for b in self._brushes], dtype=np.uint8).reshape(-1, 4)
+        return self._rgba.copy()
 
     def extra_points(self) -> np.ndarray:
         """(K, 2) positions of the extra points drawn."""
@@ -399,29 +465,89 @@ class LatentMap(QWidget):
         self.legendToggled.emit(index, on)
 
     def _refresh_points(self) -> None:
+        self._update_shown()
+        self._render()
+
+    def _update_shown(self) -> None:
+        """Which rows are shown (mask and legend), their bounds, and the selection ring."""
         visible = self._mask
         if self._groups is not None and self._hidden_groups:
             visible = visible & ~np.isin(self._groups, list(self._hidden_groups))
+        self._visible = visible
         self._shown = np.flatnonzero(visible)
         pts = self._xy[self._shown]
-        self.scatter.setData(x=pts[:, 0], y=pts[:, 1], brush=self._brushes[self._shown])
+        self.points_image.bounds = (
+            tuple(zip(pts.min(axis=0).tolist(), pts.max(axis=0).tolist(), strict=True)) if len(pts) else None
+        )
         self._refresh_selection()
 
     def _refresh_selection(self) -> None:
-        rows = self._selection[np.isin(self._selection, self._shown)]
+        rows = self._selection[self._visible[self._selection]]
         pts = self._xy[rows]
         self._highlight.setData(x=pts[:, 0], y=pts[:, 1])
 
+    def _view_grid(self) -> Grid:
+        """The raster for the current view: its pixel size, over the view and ``MARGIN`` around it."""
+        (x0, x1), (y0, y1) = self.view_box.viewRange()
+        sx, sy = (abs(float(v)) for v in self.view_box.viewPixelSize())
+        if not (np.isfinite(sx) and np.isfinite(sy) and sx > 0 and sy > 0):  # no size yet
+            sx, sy = (x1 - x0) / 640 or 1.0, (y1 - y0) / 480 or 1.0
+        mx, my = MARGIN * (x1 - x0), MARGIN * (y1 - y0)
+        width = min(int(np.ceil((x1 - x0 + 2 * mx) / sx)), MAX_SIDE)
+        height = min(int(np.ceil((y1 - y0 + 2 * my) / sy)), MAX_SIDE)
+        return Grid(x0 - mx, y0 - my, sx, sy, max(width, 1), max(height, 1))
+
+    def _view_changed(self) -> None:
+        """Render again (deferred) when the view left the image's margin or its pixel size changed."""
+        grid = self._grid
+        if grid is None or not self._shown.size:
+            return
+        (x0, x1), (y0, y1) = self.view_box.viewRange()
+        sx = abs(float(self.view_box.viewPixelSize()[0]))
+        zoom = grid.px / sx if sx > 0 else np.inf
+        if not grid.covers(x0, x1, y0, y1) or not (1 / RERENDER_ZOOM <= zoom <= RERENDER_ZOOM):
+            self._render_timer.start()
+
+    def _render(self) -> None:
+        """Rasterise the shown points over the current view into the points image."""
+        self._render_timer.stop()
+        if not self._shown.size:
+            self._grid = None
+            self.points_image.clear()
+            return
+        grid = self._view_grid()
+        pad_x, pad_y = self._point_size * grid.px, self._point_size * grid.py  # discs reaching in
+        x, y = self._xy[self._shown, 0], self._xy[self._shown, 1]
+        near = (
+            (x >= grid.x0 - pad_x)
+            & (x <= grid.x0 + grid.width * grid.px + pad_x)
+            & (y >= grid.y0 - pad_y)
+            & (y <= grid.y0 + grid.height * grid.py + pad_y)
+        )
+        rows = self._shown[near]
+        if len(rows) > self._density_above:
+            image = density(self._xy[rows], self._rgba[rows], grid)
+        else:
+            image = discs(self._xy[rows], self._rgba[rows], grid, self._point_size)
+        self.points_image.setImage(image, autoLevels=False)
+        self.points_image.setRect(QRectF(grid.x0, grid.y0, grid.width * grid.px, grid.height * grid.py))
+        self._grid = grid
+
     def _nearest(self, scene_pos: QPointF) -> int:
-        """Row of the drawn point nearest ``scene_pos`` within the pixel tolerance, or -1."""
-        if self._shown.size == 0:
+        """Row of the shown point nearest ``scene_pos`` within the pixel tolerance, or -1."""
+        if self._tree is None or self._shown.size == 0:
             return -1
         pos = self.view_box.mapSceneToView(scene_pos)
-        sx, sy = self.view_box.viewPixelSize()
-        pts = self._xy[self._shown]
+        sx, sy = (abs(float(v)) for v in self.view_box.viewPixelSize())
+        reach = self._tolerance_px * max(sx, sy)
+        near = np.asarray(self._tree.query_ball_point((pos.x(), pos.y()), reach), dtype=np.intp)
+        near = np.sort(near[self._visible[near]])  # ties go to the lowest row, as over all points
+        if near.size == 0:
+            return -1
+        pts = self._xy[near]
         d2 = ((pts[:, 0] - pos.x()) / sx) ** 2 + ((pts[:, 1] - pos.y()) / sy) ** 2
         best = int(np.argmin(d2))
-        return int(self._shown[best]) if d2[best] <= self._tolerance_px**2 else -1
+        return int(near[best]) if d2[best] <= self._tolerance_px**2 else -1
 
     def _nearest_extra(self, scene_pos: QPointF) -> int:
         """Index of the extra point drawn within the pixel tolerance of ``scene_pos``, or -1."""
@@ -491,9 +617,10 @@ class LatentMap(QWidget):
         if row == self._hover_row:
             return
         self._hover_row = row
-        if row >= 0 and self._tooltips[row]:
+        text = "" if row < 0 else self._tooltips(row) if callable(self._tooltips) else self._tooltips[row]
+        if text:
             widget_pos = self.plot.mapFromScene(ev.scenePos())  # type: ignore[attr-defined]
-            QToolTip.showText(self.plot.viewport().mapToGlobal(widget_pos), self._tooltips[row], self.plot)
+            QToolTip.showText(self.plot.viewport().mapToGlobal(widget_pos), text, self.plot)
         else:
             QToolTip.hideText()
         self.hovered.emit(int(self._ids[row]) if row >= 0 else -1)

@@ -52,11 +52,10 @@ def test_colour_by_mode_and_style_show_their_key(qtbot, explorer: Opened) -> Non
     styles = sorted({m["style"] for m in c.bank.meta})
     key = w.latent_map.key_text()
     assert all(s in key for s in styles)
-    brushes = w.latent_map.scatter.data["brush"]
     first = [m["style"] for m in c.bank.meta].index(styles[0])
-    shown = list(w.latent_map.visible_rows()).index(first)
+    assert first in w.latent_map.visible_rows()
     expected = category_colors(len(styles))[0]
-    got = brushes[shown].color().getRgbF()[:3]
+    got = w.latent_map.point_colors()[first, :3] / 255
     np.testing.assert_allclose(got, expected[:3], atol=1 / 255)
 
 

@@ -1,10 +1,11 @@
-"""LatentMap under real mouse events: clicks, drags, lasso, legend, hover."""
+"""LatentMap under real mouse events (clicks, drags, lasso, legend, hover) and the pixels it draws."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 from PySide6.QtCore import QPoint, Qt
+from PySide6.QtWidgets import QToolTip
 
 from widgets.latent_map import LatentMap
 
@@ -25,8 +26,25 @@ def latent_map(show) -> LatentMap:
     return widget
 
 
+RED, BLUE, GREEN = (255, 0, 0), (0, 0, 255), (0, 255, 0)
+
+
 def _pixel(widget: LatentMap, xy: tuple[float, float]) -> QPoint:
     return widget.data_to_widget(xy).toPoint()
+
+
+def _drawn(qtbot, widget: LatentMap, xy: tuple[float, float] | np.ndarray) -> tuple[int, int, int]:
+    """The RGB on screen at data point ``xy``, after any deferred re-render."""
+    qtbot.wait(20)
+    image = widget.plot.viewport().grab().toImage()
+    return image.pixelColor(_pixel(widget, tuple(xy))).getRgb()[:3]
+
+
+def _empty(qtbot, widget: LatentMap) -> tuple[int, int, int]:
+    """The background's RGB as drawn (the screen may have fewer bits than the theme's colour)."""
+    (x0, _), (_, y1) = widget.view_box.viewRange()
+    sx, sy = widget.view_box.viewPixelSize()
+    return _drawn(qtbot, widget, (x0 + 3 * sx, y1 - 3 * sy))
 
 
 def _drag(qtbot, widget: LatentMap, path: list[tuple[float, float]]) -> None:
@@ -111,21 +129,122 @@ def test_legend_toggle_hides_and_restores_points(qtbot, latent_map: LatentMap) -
         qtbot.mouseClick(latent_map.legend_checkbox(1), Qt.MouseButton.LeftButton)
     assert blocker.args == [1, False]
     assert latent_map.visible_rows().tolist() == [0, 1]
-    assert len(latent_map.scatter.data) == 2
+    empty = _empty(qtbot, latent_map)
+    assert [_drawn(qtbot, latent_map, XY[row]) for row in (0, 1, 2, 3)] == [RED, RED, empty, empty]
     # a hidden point is no longer clickable
     with qtbot.waitSignal(latent_map.emptyClicked, timeout=1000):
         qtbot.mouseClick(latent_map.plot.viewport(), Qt.MouseButton.LeftButton, pos=_pixel(latent_map, XY[3]))
     qtbot.mouseClick(latent_map.legend_checkbox(1), Qt.MouseButton.LeftButton)
-    assert len(latent_map.scatter.data) == 5
+    assert [_drawn(qtbot, latent_map, XY[row]) for row in (2, 3)] == [BLUE, BLUE]
 
 
-def test_visible_mask_and_selection(latent_map: LatentMap) -> None:
+def test_visible_mask_and_selection(qtbot, latent_map: LatentMap) -> None:
     latent_map.set_visible_mask(np.array([True, False, True, False, True]))
     latent_map.set_selection([0, 1])
     assert latent_map.visible_rows().tolist() == [0, 2, 4]
     assert len(latent_map._highlight.data) == 1  # the hidden row 1 is not highlighted
+    assert [_drawn(qtbot, latent_map, XY[row]) for row in (2, 3)] == [BLUE, _empty(qtbot, latent_map)]
+    with qtbot.waitSignal(latent_map.emptyClicked, timeout=1000):
+        qtbot.mouseClick(latent_map.plot.viewport(), Qt.MouseButton.LeftButton, pos=_pixel(latent_map, XY[3]))
     with pytest.raises(ValueError, match="mask"):
         latent_map.set_visible_mask(np.ones(3, dtype=bool))
+
+
+def test_each_point_is_drawn_in_its_colour_later_ones_on_top(qtbot, latent_map: LatentMap) -> None:
+    assert [_drawn(qtbot, latent_map, xy) for xy in XY] == [RED, RED, BLUE, BLUE, BLUE]
+    assert _drawn(qtbot, latent_map, (0.25, 0.75)) == _empty(qtbot, latent_map)
+    sx, _ = latent_map.view_box.viewPixelSize()
+    pair = np.array([[0.5, 0.0], [0.5 + 2 * sx, 0.0]])  # discs overlapping by most of their width
+    latent_map.set_points(pair, np.array([GREEN, RED]), np.arange(2))
+    latent_map.view_box.setRange(xRange=(-0.5, 1.5), yRange=(-0.5, 1.5), padding=0)
+    assert _drawn(qtbot, latent_map, pair[0]) == RED
+
+
+def test_new_points_are_framed(qtbot, latent_map: LatentMap) -> None:
+    far = np.array([[100.0, 100.0], [110.0, 120.0]])
+    latent_map.set_points(far, np.array([RED, BLUE]), np.arange(2))
+    (x0, x1), (y0, y1) = latent_map.view_box.viewRange()
+    assert x0 < 100 and x1 > 110 and y0 < 100 and y1 > 120 and y1 - y0 < 30
+    assert [_drawn(qtbot, latent_map, xy) for xy in far] == [RED, BLUE]
+
+
+def test_set_colors_recolours_in_place(qtbot, latent_map: LatentMap) -> None:
+    latent_map.set_visible_mask(np.array([True, True, True, True, False]))
+    latent_map.set_selection([2])
+    view = latent_map.view_box.viewRange()
+    latent_map.set_colors(np.array([GREEN] * 5, dtype=np.uint8))
+    assert latent_map.view_box.viewRange() == view
+    empty = _empty(qtbot, latent_map)
+    assert [_drawn(qtbot, latent_map, XY[row]) for row in (0, 2, 4)] == [GREEN, GREEN, empty]
+    assert latent_map.visible_rows().tolist() == [0, 1, 2, 3]
+    assert len(latent_map._highlight.data) == 1
+    assert latent_map.point_colors()[:, :3].tolist() == [list(GREEN)] * 5
+
+
+def test_zooming_in_renders_again_at_the_new_scale(qtbot, latent_map: LatentMap) -> None:
+    sx, _ = latent_map.view_box.viewPixelSize()
+    pair = np.array([[0.5, 0.5], [0.5 + 0.3 * sx, 0.5]])  # both in one pixel
+    latent_map.set_points(pair, np.array([RED, BLUE]), np.arange(2))
+    latent_map.view_box.setRange(xRange=(-0.5, 1.5), yRange=(-0.5, 1.5), padding=0)
+    assert _drawn(qtbot, latent_map, pair[0]) == BLUE
+    half = 4 * sx  # 8 pixels across fill the view: the points are 15 pixels apart
+    latent_map.view_box.setRange(xRange=(0.5 - half, 0.5 + half), yRange=(0.5 - half, 0.5 + half), padding=0)
+    qtbot.wait(20)
+    a, b = (latent_map.data_to_widget(tuple(xy)) for xy in pair)
+    assert b.x() - a.x() > 12
+    assert [_drawn(qtbot, latent_map, xy) for xy in pair] == [RED, BLUE]
+    assert _drawn(qtbot, latent_map, pair[0] - (12 * sx / 50, 0)) == _empty(qtbot, latent_map)
+
+
+def test_density_image_is_brighter_where_points_are_denser(qtbot, show) -> None:
+    widget = show(LatentMap(density_above=10_000))
+    rng = np.random.default_rng(0)
+    # two squares filled uniformly, every pixel hit: one with 9 times the points of the other
+    dense = rng.uniform(-0.2, 0.2, size=(180_000, 2))
+    sparse = rng.uniform(-0.2, 0.2, size=(20_000, 2)) + np.array([3.0, 0.0])
+    xy = np.concatenate([dense, sparse])
+    widget.set_points(xy, np.full((len(xy), 3), 255, np.uint8), np.arange(len(xy)))
+    widget.view_box.setRange(xRange=(-1.0, 4.0), yRange=(-1.0, 1.0), padding=0)
+    qtbot.wait(20)
+    image = widget.plot.viewport().grab().toImage()
+
+    def brightness(centre: tuple[float, float]) -> float:
+        p = _pixel(widget, centre)
+        patch = [image.pixelColor(p + QPoint(dx, dy)).value() for dx in range(-2, 3) for dy in range(-2, 3)]
+        return float(np.mean(patch))
+
+    empty = _empty(qtbot, widget)[2]
+    assert brightness((0.0, 0.0)) > brightness((3.0, 0.0)) + 40
+    assert brightness((3.0, 0.0)) > empty + 40  # the sparse square still shows
+    assert brightness((1.5, 0.0)) == empty
+
+
+def test_click_picks_the_nearest_visible_point_among_many(qtbot, show) -> None:
+    widget = show(LatentMap())
+    rng = np.random.default_rng(1)
+    xy = rng.normal(size=(200_000, 2))
+    widget.set_points(xy, np.full((len(xy), 3), 200, np.uint8), np.arange(len(xy)) + 7)
+    mask = rng.random(len(xy)) < 0.5
+    widget.set_visible_mask(mask)
+    widget.view_box.setRange(xRange=(-0.2, 0.2), yRange=(-0.2, 0.2), padding=0)
+    qtbot.wait(20)
+    clicked: list[int] = []
+    widget.pointClicked.connect(clicked.append)
+    widget.emptyClicked.connect(lambda *_: clicked.append(-1))
+    viewport, vb = widget.plot.viewport(), widget.view_box
+    sx, sy = vb.viewPixelSize()
+    expected = []
+    for pixel in rng.integers(100, 350, size=(25, 2)):
+        pos = QPoint(int(pixel[0]), int(pixel[1]))
+        at = vb.mapSceneToView(widget.plot.mapToScene(pos))
+        d2 = ((xy[:, 0] - at.x()) / sx) ** 2 + ((xy[:, 1] - at.y()) / sy) ** 2
+        d2[~mask] = np.inf
+        best = int(np.argmin(d2))
+        expected.append(best + 7 if d2[best] <= 8.0**2 else -1)
+        qtbot.mouseClick(viewport, Qt.MouseButton.LeftButton, pos=pos)
+    assert clicked == expected
+    assert set(expected) != {-1}
+    assert not any(not mask[i - 7] for i in expected if i >= 0)
 
 
 def test_hover_emits_id_and_leaves(qtbot, latent_map: LatentMap) -> None:
@@ -139,6 +258,15 @@ def test_hover_emits_id_and_leaves(qtbot, latent_map: LatentMap) -> None:
     qtbot.mouseMove(viewport, _pixel(latent_map, (0.25, 0.75)))
     qtbot.wait(25)
     assert hovered[-2:] == [14, -1]
+
+
+def test_tooltips_may_be_a_function_of_the_row(qtbot, latent_map: LatentMap) -> None:
+    latent_map.set_points(XY, np.full((5, 3), 255, np.uint8), IDS, lambda row: f"row {row}")
+    latent_map.view_box.setRange(xRange=(-0.5, 1.5), yRange=(-0.5, 1.5), padding=0)
+    qtbot.mouseMove(latent_map.plot.viewport(), _pixel(latent_map, (0.25, 0.25)))
+    qtbot.wait(25)
+    qtbot.mouseMove(latent_map.plot.viewport(), _pixel(latent_map, XY[2]))
+    qtbot.waitUntil(lambda: QToolTip.text() == "row 2", timeout=1000)
 
 
 def test_overlays_extra_points_and_marker(latent_map: LatentMap) -> None:
