@@ -38,14 +38,20 @@ def points_in_polygon(points: np.ndarray, polygon: np.ndarray) -> np.ndarray:
     if len(poly) < 3 or len(pts) == 0:
         return inside
     x, y = pts[:, 0], pts[:, 1]
+    (x0, y0), (x1, y1) = poly.min(axis=0), poly.max(axis=0)
+    # Only points in the polygon's bounding box can be inside. Sorted by y, the points an edge spans
+    # (min(yi, yj) <= y < max(yi, yj), i.e. (yi > y) != (yj > y)) are one run, found by bisection.
+    box = np.flatnonzero((x >= x0) & (x <= x1) & (y >= y0) & (y <= y1))
+    order = box[np.argsort(y[box])]
+    xs, ys = x[order], y[order]
+    odd = np.zeros(len(order), dtype=bool)
     for (xi, yi), (xj, yj) in zip(poly, np.roll(poly, 1, axis=0), strict=True):
-        crosses = (yi > y) != (yj > y)
-        if not np.any(crosses):
+        start, stop = np.searchsorted(ys, (min(yi, yj), max(yi, yj)))
+        if start == stop:  # also every horizontal edge
             continue
-        # x of the edge at height y; only evaluated where the edge spans y, so yj != yi there.
-        with np.errstate(divide="ignore", invalid="ignore"):
-            x_edge = xi + (y - yi) * (xj - xi) / (yj - yi)
-        inside ^= crosses & (x < x_edge)
+        x_edge = xi + (ys[start:stop] - yi) * (xj - xi) / (yj - yi)  # the edge's x at each point's y
+        odd[start:stop] ^= xs[start:stop] < x_edge
+    inside[order] = odd
     return inside
 
 

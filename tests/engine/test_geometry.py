@@ -39,6 +39,17 @@ def test_points_in_polygon_hand_cases() -> None:
     assert np.array_equal(points_in_polygon(pts, closed), points_in_polygon(pts, U_SHAPE))
 
 
+def test_points_in_a_staircase_lasso_of_many_vertices() -> None:
+    """200 steps under a known height profile: the points inside are exactly the cells under it."""
+    steps, rows = 200, 50
+    heights = np.random.default_rng(2).integers(1, rows, steps)
+    top = [(x, h) for i, h in enumerate(heights) for x in (i, i + 1)]
+    polygon = np.array([(0, 0), *top, (steps, 0)], dtype=float)
+    cx, cy = np.meshgrid(np.arange(steps) + 0.5, np.arange(rows) + 0.5, indexing="ij")
+    inside = points_in_polygon(np.c_[cx.ravel(), cy.ravel()], polygon).reshape(steps, rows)
+    assert np.array_equal(inside, np.arange(rows)[None, :] < heights[:, None])
+
+
 def test_points_on_shared_edges_belong_to_exactly_one_cell() -> None:
     cells = [
         np.array([[x, y], [x + 1, y], [x + 1, y + 1], [x, y + 1]], float) for x in range(3) for y in range(3)
