@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import json
+import os
 import re
 import sys
 from collections.abc import Callable, Iterator, Sequence
@@ -23,6 +24,7 @@ if TYPE_CHECKING:
     from engine.generate import Sample
     from engine.generators import Generator
     from engine.motion.datasets import Dataset
+    from engine.train.distributed import Ranks
     from engine.train.epochs import TrainProgress
 
 # torch and the model code are imported inside the commands, so that `odmo --help` stays quick.
@@ -181,6 +183,9 @@ def _trainer(arch: str) -> tuple[type, Callable[..., Any]]:
 def _cmd_train(args: argparse.Namespace) -> int:
     if args.out.exists() and not args.out.is_dir():
         raise ConfigError(f"{args.out}: exists and is not a folder; --out names the model folder to write")
+    from engine.train.distributed import finish
+
+    ranks = _ranks(args)
     dataset = _dataset(args)
     fields = {"n_actions": len(dataset.action_names), "n_joints": dataset.skeleton.n_joints}
     fields |= config_overrides(args.set)
@@ -191,9 +196,9 @@ def _cmd_train(args: argparse.Namespace) -> int:
         config = config_type(**fields)
     except TypeError as exc:
         raise ConfigError(f"bad {args.arch} setting: {exc}") from None
-    progress = TqdmProgress()
+    progress = TqdmProgress() if ranks.is_main else None
     try:
-        with folder_lock(args.out, "training a model"):
+        with folder_lock(args.out, "training a model") if ranks.is_main else contextlib.nullcontext():
             result = train(
                 dataset.clips,
                 dataset.action_names,
@@ -204,12 +209,29 @@ def _cmd_train(args: argparse.Namespace) -> int:
                 resume=args.resume,
                 progress=progress,
                 bank_projections=args.projections,
+                **({"ranks": ranks} if ranks.distributed else {}),
             )
     finally:
-        progress.close()
-    losses = " ".join(f"{k}={v:.4g}" for k, v in result.train_losses.items())
-    print(f"{result.model_dir}: {result.epochs} epochs, {result.train_seconds:.1f} s, {losses}")
+        if progress is not None:
+            progress.close()
+        finish(ranks)
+    if ranks.is_main:
+        losses = " ".join(f"{k}={v:.4g}" for k, v in result.train_losses.items())
+        print(f"{result.model_dir}: {result.epochs} epochs, {result.train_seconds:.1f} s, {losses}")
     return 0
+
+
+def _ranks(args: argparse.Namespace) -> Ranks:
+    """The processes torchrun started for this training (one without torchrun); ConfigError for a kind
+    that trains in one process only."""
+    from engine.modelio import resolve_device
+    from engine.train.distributed import SINGLE, start
+
+    if int(os.environ.get("WORLD_SIZE", "1")) <= 1:
+        return SINGLE
+    if args.arch != "odmo":
+        raise ConfigError(f"--arch {args.arch} trains in one process; torchrun trains --arch odmo only")
+    return start(resolve_device(args.device))
 
 
 def _cmd_bank(args: argparse.Namespace) -> int:

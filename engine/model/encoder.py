@@ -3,20 +3,40 @@
 from __future__ import annotations
 
 import torch
+import torch.distributed as dist
 import torch.nn.functional as F  # noqa: N812
 from torch import Tensor, nn
+from torch.distributed.nn.functional import all_reduce
 
 
 class SampleSafeBatchNorm1d(nn.BatchNorm1d):
-    """BatchNorm1d that uses its running statistics for a batch of one (plain BatchNorm raises)."""
+    """BatchNorm1d that uses its running statistics for a batch of one (plain BatchNorm raises) and, when
+    training across processes, the statistics of every process's batch together."""
 
     def forward(self, x: Tensor) -> Tensor:
         """Normalise ``x`` (B, F)."""
+        if self.training and dist.is_available() and dist.is_initialized() and dist.get_world_size() > 1:
+            return self._over_processes(x)
         if self.training and x.shape[0] == 1:
             return F.batch_norm(
                 x, self.running_mean, self.running_var, self.weight, self.bias, False, 0.0, self.eps
             )
         return super().forward(x)
+
+    def _over_processes(self, x: Tensor) -> Tensor:
+        """Batch norm over the union of the processes' batches (torch's SyncBatchNorm is GPU-only); the
+        sums go through torch.distributed's differentiable all-reduce."""
+        xf, f = x.float(), x.shape[1]
+        count = xf.new_full((1,), float(x.shape[0]))
+        sums = all_reduce(torch.cat([xf.sum(0), xf.square().sum(0), count]))
+        n = sums[-1]
+        mean = sums[:f] / n
+        var = (sums[f : 2 * f] / n - mean.square()).clamp(min=0.0)
+        with torch.no_grad():
+            self.num_batches_tracked.add_(1)
+            self.running_mean.lerp_(mean, self.momentum)
+            self.running_var.lerp_(var * n / (n - 1).clamp(min=1.0), self.momentum)
+        return ((xf - mean) * torch.rsqrt(var + self.eps) * self.weight + self.bias).to(x.dtype)
 
 
 class LmpEncoder(nn.Module):

@@ -143,12 +143,14 @@ class MotionGenerator(nn.Module):
         truth: Tensor | None = None,
         tf_rate: float = 0.0,
         generator: torch.Generator | None = None,
+        tf_noise: Tensor | None = None,
     ) -> tuple[Tensor, Tensor]:
         """Joint positions (B, T, J, 3) and the decoder's top-layer hidden states (B, T, H).
 
         With ``truth`` (B, T, J, 3) this is parallel scheduled sampling: a teacher-forced pass over the
         whole sequence, then (if ``tf_rate`` < 1) a second pass whose previous pose at each frame is the
-        ground truth with probability ``tf_rate`` (drawn per frame and sample from ``generator``) and the
+        ground truth with probability ``tf_rate`` (per frame and sample: where ``tf_noise`` (B, T − 1, 1),
+        uniform draws, is below it, drawn from ``generator`` when not given) and the
         first pass's (detached) prediction otherwise. The first pass is teacher-forced (one-step
         predictions) or, with ``free_running_samples``, a free-running decode, so that the decoder learns
         to continue from its own drifted poses as it must when it runs free. Without ``truth`` it decodes
@@ -169,7 +171,9 @@ class MotionGenerator(nn.Module):
                     else self._run(prev, const, state)
                 )
                 first = self._readback(guess[0])
-            keep = torch.rand(b, self.window - 1, 1, generator=generator, device=gt.device) < tf_rate
+            if tf_noise is None:
+                tf_noise = torch.rand(b, self.window - 1, 1, generator=generator, device=gt.device)
+            keep = tf_noise < tf_rate
             mixed = torch.where(keep, gt[:, :-1], first[:, :-1])
             prev = torch.cat([gt.new_zeros(b, 1, self.pose_dim), mixed], dim=1)
         poses, hidden = self._run(prev, const, state)

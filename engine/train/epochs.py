@@ -24,6 +24,7 @@ from engine.fileio import atomic_write_text
 from engine.latent.bank import LatentBank
 from engine.model.config_base import ModelConfig
 from engine.train.checkpoint import checkpoint_path, load_checkpoint, save_checkpoint
+from engine.train.distributed import SINGLE, Ranks
 from engine.train.windows import PreparedClips
 
 log = logging.getLogger(__name__)
@@ -164,9 +165,11 @@ def run_epochs(
     progress: Callable[[TrainProgress], None] | None = None,
     cancel: Callable[[], bool] | None = None,
     checkpoint_every: int = 10,
+    ranks: Ranks = SINGLE,
 ) -> EpochsRun:
     """Train ``epochs`` epochs of ``steps_per_epoch`` steps, logging to ``out_dir``/train_log.csv and
-    checkpointing to checkpoints/last.pt every ``checkpoint_every`` epochs and at the end.
+    checkpointing to checkpoints/last.pt every ``checkpoint_every`` epochs and at the end (rank 0 of
+    ``ranks`` alone writes; every rank resumes from the same checkpoint).
 
     ``resume`` continues exactly from that checkpoint (RNG states included); one made with another
     ``identity`` (see ``run_identity``) raises ModelFormatError. ``cancel`` is checked before every step;
@@ -228,7 +231,7 @@ def run_epochs(
         row |= {f"val_{k}": (val_losses or {}).get(k, float("nan")) for k in steps.terms}
         row |= {"seconds": seconds, "windows_per_s": steps_per_epoch * steps.windows_per_step / seconds}
         rows.append(row)
-        if (epoch + 1) % checkpoint_every == 0 or epoch + 1 == epochs:
+        if ranks.is_main and ((epoch + 1) % checkpoint_every == 0 or epoch + 1 == epochs):
             write_log(out / LOG_FILE, rows)
             save_checkpoint(
                 ckpt,
@@ -239,7 +242,8 @@ def run_epochs(
                 torch_rng=generator,
                 extra={"identity": identity, "log": rows, "train_seconds": train_seconds},
             )
-    write_log(out / LOG_FILE, rows)
+    if ranks.is_main:
+        write_log(out / LOG_FILE, rows)
     steps.modules.eval()
     return EpochsRun(rows, train_seconds, train_losses, val_losses, rate * steps.windows_per_step)
 
@@ -272,6 +276,7 @@ def train_steps(
     progress: Callable[[TrainProgress], None] | None = None,
     cancel: Callable[[], bool] | None = None,
     checkpoint_every: int = 10,
+    ranks: Ranks = SINGLE,
 ) -> EpochsRun:
     """``run_epochs`` as a kind's ``train`` calls it: ``config.epochs`` epochs of ``steps_per_epoch``,
     the run's identity from its config, data (``prepared``), seed and split, the RNGs from ``seed``."""
@@ -288,6 +293,7 @@ def train_steps(
         progress=progress,
         cancel=cancel,
         checkpoint_every=checkpoint_every,
+        ranks=ranks,
     )
 
 

@@ -20,6 +20,7 @@ from engine.model.precision import bfloat16_autocast, native_bfloat16
 from engine.modelio import resolve_device, save_bank, save_model
 from engine.motion.contact import contact_labels, foot_joints, resting_heights
 from engine.motion.motion import Motion
+from engine.train.distributed import SINGLE, Ranks, mean_over_ranks, parallel, rank_device
 from engine.train.epochs import (
     TrainProgress,
     TrainResult,
@@ -31,7 +32,14 @@ from engine.train.epochs import (
     train_steps,
 )
 from engine.train.pairs import PairSampler, split_clips
-from engine.train.windows import PreparedClips, WindowBatch, crop_windows, prepare_clips
+from engine.train.windows import (
+    PreparedClips,
+    WindowBatch,
+    crop_starts,
+    crop_windows,
+    prepare_clips,
+    windows_at,
+)
 
 log = logging.getLogger(__name__)
 
@@ -83,18 +91,19 @@ def _forward(
     root: int,
     *,
     tf_rate: float,
-    generator: torch.Generator | None,
+    noise: _Noise | None,
 ) -> dict[str, torch.Tensor]:
-    """Loss terms of one batch (anchors then partners); training samples z, evaluation uses the mean."""
+    """Loss terms of one batch (anchors then partners); training (``noise`` given) samples z and teacher
+    forces, evaluation (None) decodes the code means free-running."""
     mu, logvar = model.encode(data.lmp, data.mask)
-    if model.training:
-        eps = torch.randn(mu.shape, generator=generator, device=mu.device)
-        z = mu + torch.exp(0.5 * logvar) * eps
+    if noise is not None:
+        z = mu + torch.exp(0.5 * logvar) * noise.eps
         truth = data.joints
     else:
         z, truth = mu, None
     end = data.ends if config.use_end_location else None
-    out = model.decode_full(z, data.actions, end, prev_truth=truth, tf_rate=tf_rate, generator=generator)
+    tf_noise = None if noise is None else noise.tf
+    out = model.decode_full(z, data.actions, end, prev_truth=truth, tf_rate=tf_rate, tf_noise=tf_noise)
     free = None
     if config.w_free > 0 or config.w_speed > 0:
         free = out.joints if truth is None else model.decode_full(z, data.actions, end).joints
@@ -116,9 +125,51 @@ def _forward(
     )
 
 
+@dataclass
+class _Noise:
+    """A training batch's random draws: the codes' reparameterisation noise and the teacher-forcing draws
+    (None when every frame is teacher-forced)."""
+
+    eps: torch.Tensor
+    tf: torch.Tensor | None
+
+    @classmethod
+    def draw(
+        cls, n: int, config: OdmoConfig, tf_rate: float, generator: torch.Generator, device: torch.device
+    ) -> _Noise:
+        """The draws of a global batch of ``n`` windows, in the order the decoder once drew them."""
+        eps = torch.randn((n, config.latent_dim), generator=generator, device=device)
+        tf = None
+        if tf_rate < 1.0:
+            tf = torch.rand((n, config.window - 1, 1), generator=generator, device=device)
+        return cls(eps, tf)
+
+    def take(self, rows: torch.Tensor) -> _Noise:
+        """The draws of ``rows`` of the batch."""
+        return _Noise(self.eps[rows], None if self.tf is None else self.tf[rows])
+
+
+class _StepLoss(torch.nn.Module):
+    """The model and its training loss as one module, so DistributedDataParallel sees one forward."""
+
+    def __init__(self, model: OdmoModel, root: int) -> None:
+        super().__init__()
+        self.model, self.root = model, root
+
+    def forward(
+        self, data: _Tensors, same: torch.Tensor, tf_rate: float, noise: _Noise
+    ) -> dict[str, torch.Tensor]:
+        """The loss terms of a training batch."""
+        return _forward(self.model, self.model.config, data, same, self.root, tf_rate=tf_rate, noise=noise)
+
+
 class OdmoSteps:
     """ODMO's training step: class-balanced contrastive pairs, scheduled teacher forcing, gradient clipping,
-    optional bfloat16 autocast; validation on a fixed batch with the code means."""
+    optional bfloat16 autocast; validation on a fixed batch with the code means.
+
+    Across ``ranks`` every process draws the same global batch (pairs, crops and noise) and trains on its
+    share of the pairs; DistributedDataParallel averages the gradients, so the step is the global batch's.
+    """
 
     terms = _TERMS
 
@@ -128,8 +179,11 @@ class OdmoSteps:
         prepared: PreparedClips,
         train_idx: np.ndarray,
         validation: tuple[_Tensors, torch.Tensor] | None,
+        ranks: Ranks = SINGLE,
     ) -> None:
         self.model = self.modules = model
+        self.ranks = ranks
+        self.loss = parallel(_StepLoss(model, prepared.skeleton.root), ranks)
         self.config = model.config
         self.prepared = prepared
         self.sampler = PairSampler(prepared.actions, train_idx)
@@ -145,19 +199,22 @@ class OdmoSteps:
         config, dev = self.config, self.device
         anchors, slot = self.sampler.anchors(self.n_pairs, rng)
         partners, same = self.sampler.partners(slot, rng)
-        batch = crop_windows(self.prepared, np.concatenate([anchors, partners]), rng)
+        clips = np.concatenate([anchors, partners])
+        starts = crop_starts(self.prepared, clips, rng)
+        tf_rate = config.teacher_forcing(epoch)
+        noise = _Noise.draw(len(clips), config, tf_rate, generator, dev)
+        pairs = self.ranks.share(self.n_pairs)
+        rows = np.concatenate([pairs, self.n_pairs + pairs])
+        batch = windows_at(self.prepared, clips[rows], starts[rows])
         with bfloat16_autocast(dev.type, enabled=config.train_precision == "bfloat16"):
-            terms = _forward(
-                self.model,
-                config,
+            terms = self.loss(
                 _Tensors.of(batch, dev, config),
-                torch.from_numpy(same).to(dev),
-                self.prepared.skeleton.root,
-                tf_rate=config.teacher_forcing(epoch),
-                generator=generator,
+                torch.from_numpy(same[pairs]).to(dev),
+                tf_rate,
+                noise.take(torch.from_numpy(rows).to(dev)),
             )
         clipped_step(self.optimizer, self.model, terms["total"], config.grad_clip)
-        return {k: float(v.detach()) for k, v in terms.items()}
+        return mean_over_ranks({k: float(v.detach()) for k, v in terms.items()}, self.ranks)
 
     def validate(self) -> dict[str, float] | None:
         """Loss terms of the validation batch, decoded free-running from the code means."""
@@ -170,7 +227,7 @@ class OdmoSteps:
                 *self.validation,
                 self.prepared.skeleton.root,
                 tf_rate=0.0,
-                generator=None,
+                noise=None,
             )
         return {k: float(v) for k, v in terms.items()}
 
@@ -230,6 +287,7 @@ def train(
     checkpoint_every: int = 10,
     bank_projections: Sequence[str] = ("pca", "tsne", "umap"),
     bank_k_range: tuple[int, int] = (3, 11),
+    ranks: Ranks = SINGLE,
 ) -> TrainResult:
     """Train an ODMO model on ``clips`` and write the model folder ``out_dir``.
 
@@ -238,10 +296,12 @@ def train(
     code means of every clip's centre window (validation clips too, ``meta["split"]`` says which),
     with ``bank_projections`` maps and modes searched over ``bank_k_range``. ``resume``
     continues exactly from that checkpoint (the config may only differ in ``epochs``). ``cancel`` is
-    checked before every step; cancelling raises CancelledError and keeps the last checkpoint.
+    checked before every step; cancelling raises CancelledError and keeps the last checkpoint. Across
+    ``ranks`` (see ``engine.train.distributed``) each process trains on its share of every global batch
+    and rank 0 alone writes the folder; the other ranks' result has no bank.
     """
     out = Path(out_dir)
-    dev = resolve_device(device)
+    dev = rank_device(resolve_device(device), ranks)
     if config.train_precision == "bfloat16" and not native_bfloat16(dev.type):
         log.warning(
             "this %s has no bfloat16 instructions: bfloat16 training runs, but slower than float32", dev
@@ -252,7 +312,8 @@ def train(
     config = with_feet(config, prepared, train_idx)
     model = OdmoModel(config, seed=seed).to(dev)
     model.attach_skeleton(prepared.skeleton)
-    steps = OdmoSteps(model, prepared, train_idx, _validation_set(prepared, val_idx, seed, dev, config))
+    validation = _validation_set(prepared, val_idx, seed, dev, config)
+    steps = OdmoSteps(model, prepared, train_idx, validation, ranks)
     run = train_steps(
         steps,
         out,
@@ -265,8 +326,14 @@ def train(
         progress=progress,
         cancel=cancel,
         checkpoint_every=checkpoint_every,
+        ranks=ranks,
     )
-    made = provenance(prepared, (train_idx, val_idx), run, seed=seed, epochs=config.epochs, device=dev)
+    split = (train_idx, val_idx)
+    if not ranks.is_main:
+        return TrainResult.of(out, config.epochs, run, split, None)
+    made = provenance(
+        prepared, split, run, seed=seed, epochs=config.epochs, device=dev, processes=ranks.world
+    )
     save_model(out, model, config, prepared.skeleton, prepared.action_names, made, root_height(prepared))
 
     codes, ends = _encode_all(model, prepared, dev)
@@ -303,4 +370,4 @@ def train(
         cancel=cancel,
     )
     save_bank(out, bank)
-    return TrainResult.of(out, config.epochs, run, (train_idx, val_idx), bank)
+    return TrainResult.of(out, config.epochs, run, split, bank)

@@ -240,9 +240,15 @@ def crop_windows(
     """Canonical windows of clips ``indices``: a uniform random start (every start from 0 to T_i − T
     inclusive) drawn from ``rng``, or the centre crop when ``rng`` is None; short clips are padded."""
     indices = np.asarray(indices, dtype=np.int64)
-    last_start = np.maximum(prepared.lengths[indices] - prepared.window, 0)
-    starts = last_start // 2 if rng is None else rng.integers(0, last_start + 1)
-    return windows_at(prepared, indices, starts)
+    return windows_at(prepared, indices, crop_starts(prepared, indices, rng))
+
+
+def crop_starts(
+    prepared: PreparedClips, indices: Sequence[int] | np.ndarray, rng: np.random.Generator | None
+) -> np.ndarray:
+    """First frames of ``crop_windows``' windows of clips ``indices``: uniform from ``rng``, or centred."""
+    last_start = np.maximum(prepared.lengths[np.asarray(indices, dtype=np.int64)] - prepared.window, 0)
+    return last_start // 2 if rng is None else rng.integers(0, last_start + 1)
 
 
 def every_window(prepared: PreparedClips, indices: Sequence[int] | np.ndarray, stride: int) -> np.ndarray:
