@@ -39,8 +39,9 @@ class OdmoModel(nn.Module):
         super().__init__()
         self.config = config
         cond_dim = config.n_actions * config.latent_dim
-        # Built on the meta device so that construction never draws from torch's global RNG.
-        with torch.device("meta"):
+        # torch's default initialisation below is overwritten by reset_parameters; forking the RNG keeps
+        # it from moving torch's global RNG (a meta-device build would cost 1.4 s of imports at start-up).
+        with torch.random.fork_rng(devices=[]):
             self.encoder = LmpEncoder(
                 config.n_joints * 3, config.enc_hidden, config.enc_fc, config.latent_dim
             )
@@ -57,8 +58,6 @@ class OdmoModel(nn.Module):
             )
             n_feet = len(config.foot_joints) if config.foot_contact else 0
             self.contact = nn.Linear(config.motion_hidden, n_feet) if n_feet else None
-        self.to_empty(device="cpu")
-        self._init_buffers()
         self.reset_parameters(torch.Generator().manual_seed(seed))
         self.projection: BoneProjection | None = None
 
@@ -68,13 +67,6 @@ class OdmoModel(nn.Module):
             return
         device = next(self.parameters()).device
         self.projection = BoneProjection(skeleton).to(device)
-
-    def _init_buffers(self) -> None:
-        """Fill the non-persistent time-step buffers (left empty by ``to_empty``)."""
-        t = self.config.window
-        self.traj_gen.steps.copy_((torch.arange(1, t, dtype=torch.float32) / t).view(1, -1, 1))
-        self.traj_gen.shear.copy_((torch.arange(t, dtype=torch.float32) / (t - 1)).view(1, -1, 1))
-        self.motion_gen.steps.copy_((torch.arange(t, dtype=torch.float32) / t).view(1, -1, 1))
 
     @torch.no_grad()
     def reset_parameters(self, generator: torch.Generator) -> None:
@@ -133,8 +125,10 @@ class OdmoModel(nn.Module):
         prev_truth: Tensor | None = None,
         tf_rate: float = 0.0,
         generator: torch.Generator | None = None,
+        tf_noise: Tensor | None = None,
     ) -> Decoded:
-        """``decode`` with the raw joints and the foot-contact logits as well."""
+        """``decode`` with the raw joints and the foot-contact logits as well (``tf_noise``: the
+        teacher-forcing draws, see ``MotionGenerator.forward``)."""
         if prev_truth is None and not torch.is_grad_enabled() and z.shape[0] > DECODE_SLICE:
             parts = [
                 self.decode_full(z[i : i + DECODE_SLICE], action[i : i + DECODE_SLICE], end_slice)
@@ -143,7 +137,7 @@ class OdmoModel(nn.Module):
             return Decoded(*(None if p[0] is None else torch.cat(p) for p in zip(*parts, strict=True)))
         cond = self.condition(z, action)
         traj = self.traj_gen(cond, end)
-        raw, hidden = self.motion_gen(traj, cond, prev_truth, tf_rate, generator)
+        raw, hidden = self.motion_gen(traj, cond, prev_truth, tf_rate, generator, tf_noise)
         joints = raw if self.projection is None else self.projection(raw)
         contact = None if self.contact is None else self.contact(hidden).float()
         return Decoded(joints, traj, raw, contact)
