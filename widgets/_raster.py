@@ -47,49 +47,62 @@ def disc_offsets(diameter: float) -> tuple[np.ndarray, np.ndarray]:
     return dc[inside], dr[inside]
 
 
+def _packed(rgba: np.ndarray) -> np.ndarray:
+    """(N,) uint32 view of ``rgba`` (N, 4) uint8, one word per colour."""
+    return np.ascontiguousarray(rgba, dtype=np.uint8).view(np.uint32).reshape(-1)
+
+
 def discs(xy: np.ndarray, rgba: np.ndarray, grid: Grid, diameter: float) -> np.ndarray:
     """(H, W, 4) uint8 image of points ``xy`` (N, 2) drawn as discs in ``rgba`` (N, 4), later rows on top."""
     h, w = grid.height, grid.width
-    col, row = grid.pixels(xy)
     dc, dr = disc_offsets(diameter)
-    near = (col >= -dc.max()) & (col < w + dc.max()) & (row >= -dr.max()) & (row < h + dr.max())
-    rows = np.flatnonzero(near)
-    col, row = col[rows], row[rows]
+    r = int(max(dc.max(), dr.max()))
+    col, row = grid.pixels(xy)
+    rows = np.flatnonzero((col >= -r) & (col < w + r) & (row >= -r) & (row < h + r))  # discs reaching in
+    # On a canvas padded by twice the radius every pixel of those discs lands inside: no bounds checks.
+    pad = 2 * r
+    wide = w + 2 * pad
+    centre = (row[rows] + pad) * wide + (col[rows] + pad)
     # One point per centre pixel (the last row: it is drawn on top), so that within one disc offset no
     # two points write the same pixel and a gather-max-scatter keeps the topmost row exactly.
-    centre = (row + dr.max()) * (w + 2 * dc.max()) + (col + dc.max())
     _, last = np.unique(centre[::-1], return_index=True)
     keep = len(centre) - 1 - last
-    rows, col, row = rows[keep], col[keep], row[keep]
-    top = np.full(h * w, -1, dtype=np.intp)
-    for oc, orow in zip(dc, dr, strict=True):
-        c, r = col + oc, row + orow
-        ok = (c >= 0) & (c < w) & (r >= 0) & (r < h)
-        flat = r[ok] * w + c[ok]
-        top[flat] = np.maximum(top[flat], rows[ok])
-    image = np.zeros((h * w, 4), dtype=np.uint8)
-    drawn = top >= 0
-    image[drawn] = rgba[top[drawn]]
-    return image.reshape(h, w, 4)
+    centre, order = centre[keep], keep.astype(np.int32)
+    top = np.full((h + 2 * pad) * wide, -1, dtype=np.int32)
+    for offset in (dr * wide + dc).tolist():
+        flat = centre + offset
+        top[flat] = np.maximum(top[flat], order)
+    visible = top.reshape(h + 2 * pad, wide)[pad : pad + h, pad : pad + w]
+    table = np.concatenate([np.zeros(1, np.uint32), _packed(rgba)[rows]])
+    return table[visible + 1].view(np.uint8).reshape(h, w, 4)
 
 
-def density(xy: np.ndarray, rgba: np.ndarray, grid: Grid, min_alpha: int = 90) -> np.ndarray:
-    """(H, W, 4) uint8 image of points ``xy`` (N, 2): each pixel the mean colour of its points in ``rgba``
-    (N, 4), its opacity rising from ``min_alpha`` (one point) to 255 (the busiest pixel) with log(count)."""
+def density(
+    xy: np.ndarray, rgba: np.ndarray, grid: Grid, keep: np.ndarray | None = None, min_alpha: int = 90
+) -> np.ndarray:
+    """(H, W, 4) uint8 image of points ``xy`` (N, 2) (those where ``keep`` (N,) bool is true): each pixel
+    the mean colour of its points in ``rgba`` (N, 4), its opacity rising with log(count) from ``min_alpha``
+    (one point) to 255 (the busiest pixel)."""
     h, w = grid.height, grid.width
     col, row = grid.pixels(xy)
     inside = (col >= 0) & (col < w) & (row >= 0) & (row < h)
-    flat = row[inside] * w + col[inside]
-    colors = rgba[inside]
+    if keep is not None:
+        inside &= keep
+    flat = row * w + col
+    channels = [rgba[:, c] for c in range(3)]
+    if not inside.all():  # zoomed out, every point is inside: no copies
+        flat = flat[inside]
+        channels = [c[inside] for c in channels]
     count = np.bincount(flat, minlength=h * w)
+    drawn = np.flatnonzero(count)
     image = np.zeros((h * w, 4), dtype=np.uint8)
-    drawn = count > 0
-    if not drawn.any():
+    if not len(drawn):
         return image.reshape(h, w, 4)
     n = count[drawn]
-    for channel in range(3):
-        total = np.bincount(flat, weights=colors[:, channel], minlength=h * w)[drawn]
-        image[drawn, channel] = np.rint(total / n).astype(np.uint8)
-    level = np.log1p(n) / np.log1p(n.max())
+    for c, values in enumerate(channels):
+        total = np.bincount(flat, weights=values, minlength=h * w)[drawn]
+        image[drawn, c] = np.rint(total / n).astype(np.uint8)
+    peak = int(n.max())
+    level = np.log(n) / np.log(peak) if peak > 1 else np.ones(len(n))
     image[drawn, 3] = np.rint(min_alpha + (255 - min_alpha) * level).astype(np.uint8)
     return image.reshape(h, w, 4)

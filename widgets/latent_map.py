@@ -475,9 +475,16 @@ class LatentMap(QWidget):
             visible = visible & ~np.isin(self._groups, list(self._hidden_groups))
         self._visible = visible
         self._shown = np.flatnonzero(visible)
-        pts = self._xy[self._shown]
         self.points_image.bounds = (
-            tuple(zip(pts.min(axis=0).tolist(), pts.max(axis=0).tolist(), strict=True)) if len(pts) else None
+            tuple(
+                (
+                    float(np.min(v, where=visible, initial=np.inf)),
+                    float(np.max(v, where=visible, initial=-np.inf)),
+                )
+                for v in self._xy.T
+            )
+            if self._shown.size
+            else None
         )
         self._refresh_selection()
 
@@ -517,17 +524,18 @@ class LatentMap(QWidget):
             return
         grid = self._view_grid()
         pad_x, pad_y = self._point_size * grid.px, self._point_size * grid.py  # discs reaching in
-        x, y = self._xy[self._shown, 0], self._xy[self._shown, 1]
+        x, y = self._xy[:, 0], self._xy[:, 1]
         near = (
-            (x >= grid.x0 - pad_x)
+            self._visible
+            & (x >= grid.x0 - pad_x)
             & (x <= grid.x0 + grid.width * grid.px + pad_x)
             & (y >= grid.y0 - pad_y)
             & (y <= grid.y0 + grid.height * grid.py + pad_y)
         )
-        rows = self._shown[near]
-        if len(rows) > self._density_above:
-            image = density(self._xy[rows], self._rgba[rows], grid)
+        if np.count_nonzero(near) > self._density_above:
+            image = density(self._xy, self._rgba, grid, keep=self._visible)
         else:
+            rows = np.flatnonzero(near)
             image = discs(self._xy[rows], self._rgba[rows], grid, self._point_size)
         self.points_image.setImage(image, autoLevels=False)
         self.points_image.setRect(QRectF(grid.x0, grid.y0, grid.width * grid.px, grid.height * grid.py))
