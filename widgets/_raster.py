@@ -106,3 +106,23 @@ def density(
     level = np.log(n) / np.log(peak) if peak > 1 else np.ones(len(n))
     image[drawn, 3] = np.rint(min_alpha + (255 - min_alpha) * level).astype(np.uint8)
     return image.reshape(h, w, 4)
+
+
+def render(
+    xy: np.ndarray, rgba: np.ndarray, visible: np.ndarray, grid: Grid, diameter: float, density_above: int
+) -> np.ndarray:
+    """(H, W, 4) uint8 image of the ``visible`` (N,) bool points of ``xy`` (N, 2) in ``rgba`` (N, 4): discs
+    ``diameter`` pixels across, or a density image when more than ``density_above`` lie in the grid."""
+    pad_x, pad_y = diameter * grid.px, diameter * grid.py  # discs reaching in from outside
+    x, y = xy[:, 0], xy[:, 1]
+    near = (
+        visible
+        & (x >= grid.x0 - pad_x)
+        & (x <= grid.x0 + grid.width * grid.px + pad_x)
+        & (y >= grid.y0 - pad_y)
+        & (y <= grid.y0 + grid.height * grid.py + pad_y)
+    )
+    if np.count_nonzero(near) > density_above:
+        return density(xy, rgba, grid, keep=visible)
+    rows = np.flatnonzero(near)
+    return discs(xy[rows], rgba[rows], grid, diameter)

@@ -1,14 +1,16 @@
 """LatentMap: a 2-D map of latent codes with picking, dragging, lasso, overlays and a legend.
 
 The codes are drawn as one image rasterised with numpy (``widgets._raster``): discs when few lie in the
-rendered region, a density image when many do. Pan and zoom move that image; it is rendered again,
-deferred, once the view leaves its margin or the zoom changes its pixel size by more than
-``RERENDER_ZOOM``. Picking goes through a k-d tree built once per ``set_points``.
+rendered region, a density image when many do. Pan and zoom move that image; once the view leaves its
+margin or the zoom changes its pixel size by more than ``RERENDER_ZOOM`` it is rendered again on a worker
+thread, the old image staying until the new one is ready. New points, colours or masks render at once.
+Picking goes through a k-d tree built once per ``set_points``.
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
+from concurrent.futures import Future, ThreadPoolExecutor
 from typing import Literal
 
 import numpy as np
@@ -29,7 +31,7 @@ from PySide6.QtWidgets import (
 from scipy.spatial import cKDTree
 
 from widgets._colors import FOREGROUND, SELECTION, brushes_for, configure_plot, qcolor, to_rgba8
-from widgets._raster import Grid, density, discs
+from widgets._raster import Grid, render
 
 Tool = Literal["pick", "lasso"]
 Tooltips = Sequence[str] | Callable[[int], str]
@@ -164,6 +166,9 @@ class LatentMap(QWidget):
         self._mask = np.zeros(0, dtype=bool)
         self._visible = np.zeros(0, dtype=bool)
         self._grid: Grid | None = None  # where the image was rendered
+        self._generation = 0  # counts the data changes: a background render of older data is dropped
+        self._renderer: ThreadPoolExecutor | None = None
+        self._pending: tuple[int, Grid, Future[np.ndarray]] | None = None
         self._groups: np.ndarray | None = None
         self._hidden_groups: set[int] = set()
         self._shown = np.zeros(0, dtype=np.int64)
@@ -182,7 +187,9 @@ class LatentMap(QWidget):
         self.points_image = PointsImage()
         self.points_image.padding_px = self._point_size / 2
         self._render_timer = QTimer(self, singleShot=True, interval=0)
-        self._render_timer.timeout.connect(self._render)
+        self._render_timer.timeout.connect(self._render_in_background)
+        self._collect_timer = QTimer(self, interval=4)
+        self._collect_timer.timeout.connect(self._collect)
         self.view_box.sigRangeChanged.connect(self._view_changed)
         self.view_box.sigResized.connect(self._view_changed)
         self._highlight = PassiveScatter(
@@ -363,6 +370,8 @@ class LatentMap(QWidget):
         image ``width`` pixels wide (default: its size on screen), height in proportion."""
         from pyqtgraph.exporters import ImageExporter
 
+        if self.rendering():
+            self._render()
         exporter = ImageExporter(self.plot.getPlotItem())
         if width is not None:
             exporter.parameters()["width"] = int(width)
@@ -446,6 +455,10 @@ class LatentMap(QWidget):
         """The current mouse tool."""
         return self._tool
 
+    def rendering(self) -> bool:
+        """Whether the image of the points is being rendered again for the current view."""
+        return self._render_timer.isActive() or self._pending is not None or self._stale()
+
     def visible_rows(self) -> np.ndarray:
         """Row indices of the points currently drawn, (V,) int."""
         return self._shown.copy()
@@ -504,39 +517,60 @@ class LatentMap(QWidget):
         height = min(int(np.ceil((y1 - y0 + 2 * my) / sy)), MAX_SIDE)
         return Grid(x0 - mx, y0 - my, sx, sy, max(width, 1), max(height, 1))
 
-    def _view_changed(self) -> None:
-        """Render again (deferred) when the view left the image's margin or its pixel size changed."""
+    def _stale(self) -> bool:
+        """Whether the image no longer covers the view or the zoom changed its pixel size too much."""
         grid = self._grid
         if grid is None or not self._shown.size:
-            return
+            return False
         (x0, x1), (y0, y1) = self.view_box.viewRange()
         sx = abs(float(self.view_box.viewPixelSize()[0]))
         zoom = grid.px / sx if sx > 0 else np.inf
-        if not grid.covers(x0, x1, y0, y1) or not (1 / RERENDER_ZOOM <= zoom <= RERENDER_ZOOM):
+        return not grid.covers(x0, x1, y0, y1) or not (1 / RERENDER_ZOOM <= zoom <= RERENDER_ZOOM)
+
+    def _view_changed(self) -> None:
+        """Schedule a background render when the view outgrew the image (one at a time)."""
+        if self._pending is None and self._stale():
             self._render_timer.start()
 
+    def _render_job(self) -> tuple[Grid, tuple[object, ...]]:
+        """The grid of the current view and the arguments of ``render`` for it."""
+        grid = self._view_grid()
+        return grid, (self._xy, self._rgba, self._visible, grid, self._point_size, self._density_above)
+
     def _render(self) -> None:
-        """Rasterise the shown points over the current view into the points image."""
+        """Rasterise the shown points over the current view now (a background render still running is
+        dropped when it ends)."""
         self._render_timer.stop()
+        self._generation += 1
         if not self._shown.size:
             self._grid = None
             self.points_image.clear()
             return
-        grid = self._view_grid()
-        pad_x, pad_y = self._point_size * grid.px, self._point_size * grid.py  # discs reaching in
-        x, y = self._xy[:, 0], self._xy[:, 1]
-        near = (
-            self._visible
-            & (x >= grid.x0 - pad_x)
-            & (x <= grid.x0 + grid.width * grid.px + pad_x)
-            & (y >= grid.y0 - pad_y)
-            & (y <= grid.y0 + grid.height * grid.py + pad_y)
-        )
-        if np.count_nonzero(near) > self._density_above:
-            image = density(self._xy, self._rgba, grid, keep=self._visible)
-        else:
-            rows = np.flatnonzero(near)
-            image = discs(self._xy[rows], self._rgba[rows], grid, self._point_size)
+        grid, args = self._render_job()
+        self._show(render(*args), grid)
+
+    def _render_in_background(self) -> None:
+        if self._pending is not None or not self._shown.size:
+            return
+        if self._renderer is None:
+            self._renderer = ThreadPoolExecutor(max_workers=1, thread_name_prefix="latent-map")
+        grid, args = self._render_job()
+        self._pending = (self._generation, grid, self._renderer.submit(render, *args))
+        self._collect_timer.start()
+
+    def _collect(self) -> None:
+        """Show a finished background render (unless the data changed meanwhile); render again if the
+        view moved on."""
+        if self._pending is None or not self._pending[2].done():
+            return
+        generation, grid, future = self._pending
+        self._pending = None
+        self._collect_timer.stop()
+        if generation == self._generation:
+            self._show(future.result(), grid)
+        self._view_changed()
+
+    def _show(self, image: np.ndarray, grid: Grid) -> None:
         self.points_image.setImage(image, autoLevels=False)
         self.points_image.setRect(QRectF(grid.x0, grid.y0, grid.width * grid.px, grid.height * grid.py))
         self._grid = grid

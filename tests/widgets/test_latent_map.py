@@ -34,8 +34,9 @@ def _pixel(widget: LatentMap, xy: tuple[float, float]) -> QPoint:
 
 
 def _drawn(qtbot, widget: LatentMap, xy: tuple[float, float] | np.ndarray) -> tuple[int, int, int]:
-    """The RGB on screen at data point ``xy``, after any deferred re-render."""
-    qtbot.wait(20)
+    """The RGB on screen at data point ``xy``, once the image follows the view."""
+    qtbot.waitUntil(lambda: not widget.rendering(), timeout=5000)
+    qtbot.wait(10)
     image = widget.plot.viewport().grab().toImage()
     return image.pixelColor(_pixel(widget, tuple(xy))).getRgb()[:3]
 
@@ -205,7 +206,8 @@ def test_density_image_is_brighter_where_points_are_denser(qtbot, show) -> None:
     xy = np.concatenate([dense, sparse])
     widget.set_points(xy, np.full((len(xy), 3), 255, np.uint8), np.arange(len(xy)))
     widget.view_box.setRange(xRange=(-1.0, 4.0), yRange=(-1.0, 1.0), padding=0)
-    qtbot.wait(20)
+    qtbot.waitUntil(lambda: not widget.rendering(), timeout=5000)
+    qtbot.wait(10)
     image = widget.plot.viewport().grab().toImage()
 
     def brightness(centre: tuple[float, float]) -> float:
