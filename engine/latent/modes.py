@@ -4,16 +4,16 @@ from __future__ import annotations
 
 import logging
 import warnings
-from typing import Self
+from typing import TYPE_CHECKING, Self
 
 import numpy as np
-from scipy.stats import multivariate_normal
 from sklearn.base import BaseEstimator
 from sklearn.exceptions import ConvergenceWarning
-from sklearn.metrics import silhouette_score
-from sklearn.mixture import GaussianMixture
 
 from engine.errors import ConfigError, ModelFormatError
+
+if TYPE_CHECKING:
+    from sklearn.mixture import GaussianMixture
 
 log = logging.getLogger(__name__)
 
@@ -182,6 +182,8 @@ class ModeModel(BaseEstimator):
 
     def log_responsibilities(self, codes: np.ndarray) -> np.ndarray:
         """(M, K) log of weight × density of each code under each mode (unnormalised)."""
+        from scipy.stats import multivariate_normal  # loaded on first use, not at start-up
+
         x = _check_codes(codes, self.means_.shape[1])
         return np.stack(
             [
@@ -285,6 +287,8 @@ def _silhouette(x: np.ndarray, labels: np.ndarray, sample_size: int | None, seed
     n_labels = len(np.unique(labels))
     if not 2 <= n_labels <= len(x) - 1:
         return float("nan")
+    from sklearn.metrics import silhouette_score  # loaded on first fit, not at start-up
+
     if sample_size is not None and len(x) > sample_size:
         return float(silhouette_score(x, labels, sample_size=sample_size, random_state=seed))
     return float(silhouette_score(x, labels))
@@ -301,6 +305,8 @@ def choose_k(scores: dict[int, float], ratio: float = 0.95) -> int | None:
 
 def _fit_gmm(x: np.ndarray, k: int, seed: int, covariance: str = "full") -> GaussianMixture:
     """A mixture of ``k`` Gaussians (full or diagonal covariances); non-convergence is logged, not raised."""
+    from sklearn.mixture import GaussianMixture  # loaded on first fit, not at start-up
+
     gmm = GaussianMixture(n_components=k, covariance_type=covariance, reg_covar=REG_COVAR, random_state=seed)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", ConvergenceWarning)

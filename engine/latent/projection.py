@@ -18,8 +18,6 @@ import warnings
 from typing import Any, ClassVar, Self
 
 import numpy as np
-from sklearn.decomposition import PCA
-from sklearn.manifold import TSNE
 
 from engine.errors import ConfigError, ModelFormatError
 from engine.latent.geometry import NeighbourBlend
@@ -185,6 +183,8 @@ class PCAProjection(Projection):
         self.explained_variance_ratio_: np.ndarray | None = None
 
     def _fit(self, x: np.ndarray) -> np.ndarray:
+        from sklearn.decomposition import PCA  # loaded on first fit, not at start-up
+
         pca = PCA(n_components=2, svd_solver="full", random_state=self.seed).fit(x)
         self.components_, self.mean_ = pca.components_, pca.mean_
         self.explained_variance_ratio_ = pca.explained_variance_ratio_
@@ -230,6 +230,8 @@ class TSNEProjection(Projection):
 
     def _fit(self, x: np.ndarray) -> np.ndarray:
         perplexity = min(self.perplexity, (len(x) - 1) / 3.0)
+        from sklearn.manifold import TSNE  # loaded on first fit, not at start-up
+
         tsne = TSNE(n_components=2, perplexity=perplexity, init="pca", random_state=self.seed)
         return tsne.fit_transform(x)
 
