@@ -3,7 +3,9 @@
 Synthetic smooth random clips; the full ``engine.train.train`` step is timed (cropping, canonical
 facing, encoder, trajectory and motion generators with parallel scheduled sampling, losses, backward,
 clipping, Adam). Run: ``python bench/train_speed.py [--threads 1 2] [--precision float32 bfloat16]
-[--epochs 3]``. Target: >= 300 windows/s on the 2-core CPU.
+[--epochs 3] [--profile]``. Target: >= 300 windows/s on the 2-core CPU. ``--profile`` instead records where
+a float32 step's time goes (torch.profiler, self CPU time per operator), to set against bench/ceiling.py's
+matrix-product ceiling.
 """
 
 from __future__ import annotations
@@ -67,20 +69,61 @@ def measure(
     }
 
 
+MATMUL_OPS = ("aten::mm", "aten::addmm", "aten::bmm", "aten::baddbmm", "aten::matmul", "aten::linear")
+LSTM_OPS = ("aten::mkldnn_rnn_layer", "aten::mkldnn_rnn_layer_backward")  # oneDNN's fused LSTM layers
+
+
+def profile(threads: int, clips: list[Motion], actions: list[str], top: int = 12) -> list[dict[str, object]]:
+    """Self CPU time of the ``top`` operators over one float32 epoch of 8 steps, and the shares of the LSTM
+    layers and of the other matrix products."""
+    from torch.profiler import ProfilerActivity
+    from torch.profiler import profile as torch_profile
+
+    torch.set_num_threads(threads)
+    config = OdmoConfig(n_actions=N_ACTIONS, n_joints=N_JOINTS, epochs=1, epoch_size=1024)
+    with tempfile.TemporaryDirectory() as out, torch_profile(activities=[ProfilerActivity.CPU]) as prof:
+        train(clips, actions, Path(out), config, device="cpu", val_fraction=0.1,
+              bank_projections=("pca",), bank_k_range=(3, 3))  # fmt: skip
+    events = sorted(prof.key_averages(), key=lambda e: e.self_cpu_time_total, reverse=True)
+    total = sum(e.self_cpu_time_total for e in events)
+
+    def row(name: str, calls: object, micros: float) -> dict[str, object]:
+        return {
+            "operator": name,
+            "calls": calls,
+            "self CPU ms": round(micros / 1e3, 1),
+            "share": f"{micros / total:.1%}",
+        }
+
+    rows = [row(e.key, e.count, e.self_cpu_time_total) for e in events[:top]]
+    for name, ops in (("LSTM layers, forward and backward", LSTM_OPS), ("other matrix products", MATMUL_OPS)):
+        rows.append(row(name, "", sum(e.self_cpu_time_total for e in events if e.key in ops)))
+    rows.append(row("all operators", "", total))
+    return rows
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("--threads", type=int, nargs="+", default=[1, 2])
     parser.add_argument("--precision", nargs="+", default=["float32", "bfloat16"], choices=TRAIN_PRECISIONS)
     parser.add_argument("--epochs", type=int, default=3)
+    parser.add_argument("--profile", action="store_true", help="profile a float32 epoch instead")
     parser.add_argument("--no-record", action="store_true", help="print only")
     args = parser.parse_args()
     clips, actions = synthetic_clips(20, np.random.default_rng(0))
+    command = ("python bench/train_speed.py " + " ".join(sys.argv[1:])).strip()
+    if args.profile:
+        profiled = profile(max(args.threads), clips, actions)
+        for row in profiled:
+            print(row)
+        if not args.no_record:
+            record("Training step profile (CPU, float32)", profiled, command)
+        return
     rows = [measure(n, p, args.epochs, clips, actions) for n in args.threads for p in args.precision]
     for row in rows:
         print(row)
     if not args.no_record:
-        command = "python bench/train_speed.py " + " ".join(sys.argv[1:])
-        record("Training throughput (CPU)", rows, command.strip())
+        record("Training throughput (CPU)", rows, command)
 
 
 if __name__ == "__main__":
