@@ -66,7 +66,7 @@ class PointsImage(pg.ImageItem):
         return (rect.left(), rect.right()) if ax == 0 else (rect.top(), rect.bottom())
 
     def pixelPadding(self) -> float:  # noqa: N802
-        """Pixels beyond the points' centres that auto-range keeps in view (the disc radius)."""
+        """Pixels beyond the points' centres that auto-range keeps in view."""
         return self.padding_px
 
     def mouseClickEvent(self, ev: object) -> None:  # noqa: N802
@@ -185,7 +185,7 @@ class LatentMap(QWidget):
         self.plot.viewport().installEventFilter(self._drops)
         self.view_box.setAspectLocked(True)  # one map unit is as long across as up
         self.points_image = PointsImage()
-        self.points_image.padding_px = self._point_size / 2
+        self.points_image.padding_px = (self._point_size + 1) * 0.7072  # as a scatter of such discs pads
         self._render_timer = QTimer(self, singleShot=True, interval=0)
         self._render_timer.timeout.connect(self._render_in_background)
         self._collect_timer = QTimer(self, interval=4)
