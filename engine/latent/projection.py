@@ -5,6 +5,10 @@ Where a map has no exact inverse (PCA: the off-plane part) or no usable forward 
 UMAP) the missing direction is a continuous inverse-distance-weighted blend of the k nearest neighbours
 (:class:`engine.latent.geometry.NeighbourBlend`), exact on the fitted codes and their embedding.
 
+Past ``max_fit`` codes (t-SNE and UMAP: 10,000 by default) a map is fitted on a seeded sample of that many
+and every other code is placed by the neighbour blend of the sample's embedding, as umap's and openTSNE's
+``transform`` place new points: fit time stops growing with the bank, and ``embedding_`` covers every code.
+
 ``inverse_transform(points2d, codes_ref)``: when reference codes (M, D) are given, each result keeps what
 the map cannot show of its reference code: x = inverse(p) + (ref − inverse(transform(ref))), so that
 ``inverse_transform(transform(ref), ref) == ref`` and a drag that starts on a code starts exactly at it.
@@ -31,10 +35,14 @@ class Projection:
     name: ClassVar[str] = ""
     registry: ClassVar[dict[str, type[Projection]]] = {}
     state_keys: ClassVar[tuple[str, ...]] = ()  # names of the arrays _state() returns
+    default_max_fit: ClassVar[int | None] = None  # codes fitted at most; None: every code
 
-    def __init__(self, seed: int = 0, k: int = 8):
+    def __init__(self, seed: int = 0, k: int = 8, max_fit: int | None = None):
         self.seed = seed
         self.k = k
+        self.max_fit = max_fit if max_fit is not None else self.default_max_fit
+        if self.max_fit is not None and self.max_fit < 3:
+            raise ConfigError(f"max_fit must be at least 3, got {self.max_fit}")
         self.codes_: np.ndarray | None = None
         self.embedding_: np.ndarray | None = None
         self._blends: dict[bool, NeighbourBlend] = {}
@@ -45,16 +53,25 @@ class Projection:
 
     def params(self) -> dict[str, Any]:
         """Constructor parameters (JSON-serialisable)."""
-        return {"seed": self.seed, "k": self.k}
+        return {"seed": self.seed, "k": self.k, "max_fit": self.max_fit}
 
     def fit(self, codes: np.ndarray) -> Self:
-        """Fit the map to codes (N, D); sets ``codes_`` and ``embedding_`` (N, 2)."""
+        """Fit the map to codes (N, D), on a sample of ``max_fit`` of them past that; sets ``codes_`` and
+        ``embedding_`` (N, 2)."""
         x = np.asarray(codes)
         if x.ndim != 2 or len(x) < 3 or x.shape[1] < 2:
             raise ConfigError(f"a {self.name} map needs codes of shape (N >= 3, D >= 2), got {x.shape}")
         if not np.all(np.isfinite(x)):
             raise ConfigError("codes contain NaN or infinite values")
-        self._set_fitted(x, self._fit(x.astype(np.float64)))
+        if self.max_fit is None or len(x) <= self.max_fit:
+            self._set_fitted(x, self._fit(x.astype(np.float64)))
+        else:
+            rows = np.sort(np.random.default_rng(self.seed).choice(len(x), self.max_fit, replace=False))
+            sample = self._fit(x[rows].astype(np.float64))
+            self._set_fitted(x[rows], sample)
+            embedding = self._transform(x.astype(np.float64))
+            embedding[rows] = sample
+            self._set_fitted(x, embedding)
         log.info("fitted the %s map of %d codes", self.name, len(x))
         return self
 
@@ -176,8 +193,8 @@ class PCAProjection(Projection):
     name = "pca"
     state_keys = ("components", "mean", "explained_variance_ratio")
 
-    def __init__(self, seed: int = 0, k: int = 8):
-        super().__init__(seed, k)
+    def __init__(self, seed: int = 0, k: int = 8, max_fit: int | None = None):
+        super().__init__(seed, k, max_fit)
         self.components_: np.ndarray | None = None
         self.mean_: np.ndarray | None = None
         self.explained_variance_ratio_: np.ndarray | None = None
@@ -220,9 +237,10 @@ class TSNEProjection(Projection):
     """sklearn's t-SNE (seeded); new codes are placed, and points inverted, by neighbour blends."""
 
     name = "tsne"
+    default_max_fit = 10_000
 
-    def __init__(self, seed: int = 0, k: int = 8, perplexity: float = 30.0):
-        super().__init__(seed, k)
+    def __init__(self, seed: int = 0, k: int = 8, perplexity: float = 30.0, max_fit: int | None = None):
+        super().__init__(seed, k, max_fit)
         self.perplexity = perplexity
 
     def params(self) -> dict[str, Any]:
@@ -246,9 +264,17 @@ class UMAPProjection(Projection):
     """
 
     name = "umap"
+    default_max_fit = 10_000
 
-    def __init__(self, seed: int = 0, k: int = 8, n_neighbors: int = 15, min_dist: float = 0.1):
-        super().__init__(seed, k)
+    def __init__(
+        self,
+        seed: int = 0,
+        k: int = 8,
+        n_neighbors: int = 15,
+        min_dist: float = 0.1,
+        max_fit: int | None = None,
+    ):
+        super().__init__(seed, k, max_fit)
         self.n_neighbors = n_neighbors
         self.min_dist = min_dist
 

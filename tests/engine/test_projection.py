@@ -176,3 +176,20 @@ def test_bad_names_inputs_and_files(fitted: dict[str, Projection]) -> None:
         Projection.from_arrays("p/", arrays)
     with pytest.raises(ModelFormatError):
         PCAProjection.from_arrays("p/", fitted["tsne"].to_arrays("p/"))
+
+
+def test_past_max_fit_a_map_is_fitted_on_a_sample_and_places_every_other_code() -> None:
+    codes, labels = clusters(n_per=200)
+    whole = TSNEProjection(seed=0, max_fit=90).fit(codes)
+    assert whole.embedding_.shape == (600, 2)
+    np.testing.assert_array_equal(whole.codes_, codes)
+    rows = np.sort(np.random.default_rng(0).choice(600, 90, replace=False))
+    alone = TSNEProjection(seed=0).fit(codes[rows])  # the sample, fitted by itself, lies where it was
+    np.testing.assert_allclose(whole.embedding_[rows], alone.embedding_, atol=1e-6)
+    others = np.setdiff1d(np.arange(600), rows)
+    classifier = KNeighborsClassifier(5).fit(whole.embedding_[rows], labels[rows])
+    assert np.all(classifier.predict(whole.embedding_[others]) == labels[others])
+    assert stored(whole).max_fit == 90
+    assert TSNEProjection().max_fit == 10_000 and PCAProjection().max_fit is None
+    with pytest.raises(ConfigError, match="max_fit must be at least 3"):
+        TSNEProjection(max_fit=2)
