@@ -4,7 +4,7 @@ The codes are drawn as one image rasterised with numpy (``widgets._raster``): di
 rendered region, a density image when many do. Pan and zoom move that image; once the view leaves its
 margin or the zoom changes its pixel size by more than ``RERENDER_ZOOM`` it is rendered again on a worker
 thread, the old image staying until the new one is ready. New points, colours or masks render at once.
-Picking goes through a k-d tree built once per ``set_points``.
+Picking goes through a k-d tree built on that thread once per ``set_points``.
 """
 
 from __future__ import annotations
@@ -161,13 +161,13 @@ class LatentMap(QWidget):
         self._xy = np.zeros((0, 2))
         self._ids = np.zeros(0, dtype=np.int64)
         self._rgba = np.zeros((0, 4), dtype=np.uint8)
-        self._tree: cKDTree | None = None
+        self._tree: Future[cKDTree] | None = None  # built on the worker thread
         self._tooltips: Tooltips = []
         self._mask = np.zeros(0, dtype=bool)
         self._visible = np.zeros(0, dtype=bool)
         self._grid: Grid | None = None  # where the image was rendered
         self._generation = 0  # counts the data changes: a background render of older data is dropped
-        self._renderer: ThreadPoolExecutor | None = None
+        self._worker: ThreadPoolExecutor | None = None  # renders views and builds the k-d tree
         self._pending: tuple[int, Grid, Future[np.ndarray]] | None = None
         self._groups: np.ndarray | None = None
         self._hidden_groups: set[int] = set()
@@ -267,8 +267,8 @@ class LatentMap(QWidget):
             raise ValueError(f"expected {n} tooltips, got {len(tooltips)}")
         self._rgba = to_rgba8(colors, n)
         self._xy, self._ids, self._tooltips = xy, ids, tooltips
-        # an unbalanced tree builds in half the time and answers a pick as fast
-        self._tree = cKDTree(xy, balanced_tree=False, compact_nodes=False) if n else None
+        # an unbalanced tree builds in half the time and answers a pick as fast; a pick waits for it
+        self._tree = self._background(cKDTree, xy, balanced_tree=False, compact_nodes=False) if n else None
         self._mask = np.ones(n, dtype=bool)
         self._groups = None
         self._hidden_groups.clear()
@@ -552,11 +552,15 @@ class LatentMap(QWidget):
     def _render_in_background(self) -> None:
         if self._pending is not None or not self._shown.size:
             return
-        if self._renderer is None:
-            self._renderer = ThreadPoolExecutor(max_workers=1, thread_name_prefix="latent-map")
         grid, args = self._render_job()
-        self._pending = (self._generation, grid, self._renderer.submit(render, *args))
+        self._pending = (self._generation, grid, self._background(render, *args))
         self._collect_timer.start()
+
+    def _background(self, function: Callable[..., object], *args: object, **kwargs: object) -> Future:
+        """``function(*args, **kwargs)`` run on the map's worker thread."""
+        if self._worker is None:
+            self._worker = ThreadPoolExecutor(max_workers=1, thread_name_prefix="latent-map")
+        return self._worker.submit(function, *args, **kwargs)
 
     def _collect(self) -> None:
         """Show a finished background render (unless the data changed meanwhile); render again if the
@@ -582,7 +586,8 @@ class LatentMap(QWidget):
         pos = self.view_box.mapSceneToView(scene_pos)
         sx, sy = (abs(float(v)) for v in self.view_box.viewPixelSize())
         reach = self._tolerance_px * max(sx, sy)
-        near = np.asarray(self._tree.query_ball_point((pos.x(), pos.y()), reach), dtype=np.intp)
+        tree = self._tree.result()
+        near = np.asarray(tree.query_ball_point((pos.x(), pos.y()), reach), dtype=np.intp)
         near = np.sort(near[self._visible[near]])  # ties go to the lowest row, as over all points
         if near.size == 0:
             return -1
