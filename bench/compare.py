@@ -15,6 +15,7 @@ import argparse
 import datetime as dt
 import json
 import logging
+import re
 import sys
 import time
 from collections.abc import Callable, Sequence
@@ -141,13 +142,17 @@ PER_ACTION_COLUMNS = (
 def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
     """Command-line options."""
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("--data", required=True, type=Path)
+    p.add_argument("--data", type=Path, help="the Bandai-Namco-2 folder (every mode but --modi-only)")
     p.add_argument("--epochs", type=int, default=300, help="epochs of 2,048 windows, every model")
     p.add_argument("--reuse", action="store_true", help="keep finished models in --runs")
     p.add_argument("--runs", type=Path, default=REPO / "runs" / "compare")
     p.add_argument("--results", type=Path, default=RESULTS)
     p.add_argument("--classifier", type=Path, help="evaluation classifier folder (default: the shipped one)")
     p.add_argument("--modi", type=Path, default=MODI_MODEL, help="MoDi model folder whose eval.json to show")
+    p.add_argument(
+        "--modi-only", action="store_true",
+        help="rewrite only the MoDi section of --results from --modi's eval.json (nothing is trained)",
+    )  # fmt: skip
     p.add_argument("--classifier-epochs", type=int, default=40)
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--repeats", type=int, default=10)
@@ -165,6 +170,8 @@ def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
         "--previous-label", action="append", default=[], help="what each odmo_previous row is called"
     )
     args = p.parse_args(argv)
+    if args.data is None and not args.modi_only:
+        p.error("--data is required (except with --modi-only)")
     args.rows = [r.strip() for r in args.rows.split(",") if r.strip()]
     unknown = sorted(set(args.rows) - set(ROWS))
     if unknown:
@@ -301,6 +308,24 @@ def unconditional_markdown(report: dict[str, Any]) -> list[str]:
             "Predicted action of its samples: " + ", ".join(f"{a} {v:.1%}" for a, v in shares.items()),
         ]
     return [*lines, ""]
+
+
+def _write_modi_section(results: Path, report_path: Path) -> int:
+    """Replace (or add, before "How it was made") the MoDi section of ``results`` from ``report_path``."""
+    section = "\n".join(unconditional_markdown(json.loads(report_path.read_text())))
+    section += (
+        f"Section rewritten from `{shown(report_path, 'MODI')}` by `python bench/compare.py --modi-only`.\n\n"
+    )
+    text = results.read_text()
+    found = re.search(r"^## Unconditional: MoDi\n.*?(?=^## )", text, re.MULTILINE | re.DOTALL)
+    if found:
+        text = text[: found.start()] + section + text[found.end() :]
+    else:
+        at = text.index("## How it was made")
+        text = text[:at] + section + text[at:]
+    atomic_write_text(results, text)
+    print(f"wrote the MoDi section of {results}")
+    return 0
 
 
 def _choose_classifier(
@@ -455,6 +480,8 @@ def _check_same_real(first: dict[str, Any], other: dict[str, Any], row: str) -> 
 def main(argv: Sequence[str] | None = None) -> int:
     """Train or reuse every model, evaluate them all, write RESULTS.md."""
     args = parse_args(argv)
+    if args.modi_only:
+        return _write_modi_section(args.results, args.modi / "eval.json")
     logging.basicConfig(level=logging.INFO, format="%(name)s: %(message)s")
     torch.set_num_threads(args.threads)
     started = time.time()
