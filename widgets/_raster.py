@@ -6,6 +6,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from scipy import ndimage
 
 
 @dataclass(frozen=True)
@@ -45,6 +46,15 @@ def disc_offsets(diameter: float) -> tuple[np.ndarray, np.ndarray]:
     dc, dr = np.meshgrid(span, span)
     inside = dc**2 + dr**2 <= r * r
     return dc[inside], dr[inside]
+
+
+def _disc(radius: float) -> np.ndarray:
+    """A boolean disc of ``radius`` pixels, as a structuring element."""
+    dc, dr = disc_offsets(2 * radius)
+    r = int(max(dc.max(), dr.max()))
+    element = np.zeros((2 * r + 1, 2 * r + 1), dtype=bool)
+    element[dr + r, dc + r] = True
+    return element
 
 
 def _packed(rgba: np.ndarray) -> np.ndarray:
@@ -126,3 +136,28 @@ def render(
         return density(xy, rgba, grid, keep=visible)
     rows = np.flatnonzero(near)
     return discs(xy[rows], rgba[rows], grid, diameter)
+
+
+def rings(
+    xy: np.ndarray, rgba: tuple[int, int, int, int], grid: Grid, inner: float, outer: float
+) -> np.ndarray:
+    """(H, W, 4) uint8 image of rings around points ``xy`` (N, 2) in colour ``rgba``: the pixels within
+    ``outer`` pixels of a point and beyond ``inner`` pixels of every point (where rings of nearby points
+    overlap, the outline of the group)."""
+    h, w = grid.height, grid.width
+    pad = int(np.ceil(outer)) + 1
+    col, row = grid.pixels(xy)
+    near = (col >= -pad) & (col < w + pad) & (row >= -pad) & (row < h + pad)
+    image = np.zeros((h, w, 4), dtype=np.uint8)
+    if not near.any():
+        return image
+    col, row = col[near], row[near]
+    # work on the points' bounding box (plus the ring) only: a lasso's selection is usually local
+    c0, c1 = max(int(col.min()) - pad, -pad), min(int(col.max()) + pad + 1, w + pad)
+    r0, r1 = max(int(row.min()) - pad, -pad), min(int(row.max()) + pad + 1, h + pad)
+    hit = np.zeros((r1 - r0, c1 - c0), dtype=bool)
+    hit[row - r0, col - c0] = True
+    ring = ndimage.binary_dilation(hit, _disc(outer)) & ~ndimage.binary_dilation(hit, _disc(inner))
+    ring = ring[max(-r0, 0) : ring.shape[0] - max(r1 - h, 0), max(-c0, 0) : ring.shape[1] - max(c1 - w, 0)]
+    image[max(r0, 0) : max(r0, 0) + ring.shape[0], max(c0, 0) : max(c0, 0) + ring.shape[1]][ring] = rgba
+    return image

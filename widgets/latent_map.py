@@ -11,6 +11,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from concurrent.futures import Future, ThreadPoolExecutor
+from functools import partial
 from typing import Literal
 
 import numpy as np
@@ -31,7 +32,7 @@ from PySide6.QtWidgets import (
 from scipy.spatial import cKDTree
 
 from widgets._colors import FOREGROUND, SELECTION, brushes_for, configure_plot, qcolor, to_rgba8
-from widgets._raster import Grid, render
+from widgets._raster import Grid, render, rings
 
 Tool = Literal["pick", "lasso"]
 Tooltips = Sequence[str] | Callable[[int], str]
@@ -131,7 +132,9 @@ class LatentMap(QWidget):
 
     Point positions passed to ``set_visible_mask`` / ``set_selection`` are row indices into the
     arrays given to ``set_points``; signals report the per-point ``ids``. More than ``density_above``
-    shown points in the rendered region are drawn as a density image instead of discs.
+    shown points in the rendered region are drawn as a density image instead of discs; more than
+    ``rings_above`` selected points are ringed in an image (where rings overlap, the group's outline)
+    instead of by a scatter item.
     """
 
     pointClicked = Signal(int)  # noqa: N815
@@ -152,11 +155,16 @@ class LatentMap(QWidget):
         point_size: float = 6.0,
         pick_tolerance_px: float = 8.0,
         density_above: int = 50_000,
+        rings_above: int = 2000,
     ) -> None:
         super().__init__(parent)
         self._tolerance_px = float(pick_tolerance_px)
         self._point_size = float(point_size)
         self._density_above = int(density_above)
+        self._rings_above = int(rings_above)
+        ring = (point_size + 8) / 2  # the selection ring's radius, 2 px wide
+        self._ring_radii = (ring - 1, ring + 1)
+        self._ring_rows: np.ndarray | None = None  # selected rows ringed in the image, when many
         self._tool: Tool = "pick"
         self._xy = np.zeros((0, 2))
         self._ids = np.zeros(0, dtype=np.int64)
@@ -168,7 +176,7 @@ class LatentMap(QWidget):
         self._grid: Grid | None = None  # where the image was rendered
         self._generation = 0  # counts the data changes: a background render of older data is dropped
         self._worker: ThreadPoolExecutor | None = None  # renders views and builds the k-d tree
-        self._pending: tuple[int, Grid, Future[np.ndarray]] | None = None
+        self._pending: tuple[int, Grid, Future[tuple[np.ndarray, np.ndarray | None]]] | None = None
         self._groups: np.ndarray | None = None
         self._hidden_groups: set[int] = set()
         self._shown = np.zeros(0, dtype=np.int64)
@@ -186,6 +194,9 @@ class LatentMap(QWidget):
         self.view_box.setAspectLocked(True)  # one map unit is as long across as up
         self.points_image = PointsImage()
         self.points_image.padding_px = (self._point_size + 1) * 0.7072  # as a scatter of such discs pads
+        self._rings_image = PointsImage()
+        self._rings_image.setZValue(10.5)
+        self.view_box.addItem(self._rings_image)
         self._render_timer = QTimer(self, singleShot=True, interval=0)
         self._render_timer.timeout.connect(self._render_in_background)
         self._collect_timer = QTimer(self, interval=4)
@@ -297,7 +308,9 @@ class LatentMap(QWidget):
         if rows.size and (rows.min() < 0 or rows.max() >= len(self._xy)):
             raise ValueError(f"selection indices must lie in [0, {len(self._xy)})")
         self._selection = rows
+        self._generation += 1  # a background render of the old rings is not shown
         self._refresh_selection()
+        self._draw_rings()
 
     def set_marker(self, xy: Sequence[float] | np.ndarray | None) -> None:
         """Mark one position (a decoded point), or remove the marker with None."""
@@ -502,9 +515,22 @@ class LatentMap(QWidget):
         self._refresh_selection()
 
     def _refresh_selection(self) -> None:
+        """Ring the shown selected rows: by the scatter item when few, else in the rings image."""
         rows = self._selection[self._visible[self._selection]]
-        pts = self._xy[rows]
+        many = len(rows) > self._rings_above
+        self._ring_rows = rows if many else None
+        pts = self._xy[rows[:0] if many else rows]
         self._highlight.setData(x=pts[:, 0], y=pts[:, 1])
+
+    def _ring_job(self, grid: Grid) -> Callable[[], np.ndarray] | None:
+        """The rendering of the rings image over ``grid`` (None: no rings image)."""
+        if self._ring_rows is None:
+            return None
+        return partial(rings, self._xy[self._ring_rows], qcolor(SELECTION).getRgb(), grid, *self._ring_radii)
+
+    def _draw_rings(self) -> None:
+        job = self._ring_job(self._grid) if self._grid is not None else None
+        self._place(self._rings_image, None if job is None else job(), self._grid)
 
     def _view_grid(self) -> Grid:
         """The raster for the current view: its pixel size, over the view and ``MARGIN`` around it."""
@@ -532,10 +558,14 @@ class LatentMap(QWidget):
         if self._pending is None and self._stale():
             self._render_timer.start()
 
-    def _render_job(self) -> tuple[Grid, tuple[object, ...]]:
-        """The grid of the current view and the arguments of ``render`` for it."""
+    def _render_job(self) -> tuple[Grid, Callable[[], tuple[np.ndarray, np.ndarray | None]]]:
+        """The grid of the current view and the rendering of the points and rings images over it."""
         grid = self._view_grid()
-        return grid, (self._xy, self._rgba, self._visible, grid, self._point_size, self._density_above)
+        points = partial(
+            render, self._xy, self._rgba, self._visible, grid, self._point_size, self._density_above
+        )
+        ring = self._ring_job(grid)
+        return grid, lambda: (points(), None if ring is None else ring())
 
     def _render(self) -> None:
         """Rasterise the shown points over the current view now (a background render still running is
@@ -545,15 +575,16 @@ class LatentMap(QWidget):
         if not self._shown.size:
             self._grid = None
             self.points_image.clear()
+            self._rings_image.clear()
             return
-        grid, args = self._render_job()
-        self._show(render(*args), grid)
+        grid, job = self._render_job()
+        self._show(*job(), grid)
 
     def _render_in_background(self) -> None:
         if self._pending is not None or not self._shown.size:
             return
-        grid, args = self._render_job()
-        self._pending = (self._generation, grid, self._background(render, *args))
+        grid, job = self._render_job()
+        self._pending = (self._generation, grid, self._background(job))
         self._collect_timer.start()
 
     def _background(self, function: Callable[..., object], *args: object, **kwargs: object) -> Future:
@@ -571,13 +602,22 @@ class LatentMap(QWidget):
         self._pending = None
         self._collect_timer.stop()
         if generation == self._generation:
-            self._show(future.result(), grid)
+            self._show(*future.result(), grid)
         self._view_changed()
 
-    def _show(self, image: np.ndarray, grid: Grid) -> None:
-        self.points_image.setImage(image, autoLevels=False)
-        self.points_image.setRect(QRectF(grid.x0, grid.y0, grid.width * grid.px, grid.height * grid.py))
+    def _show(self, points: np.ndarray, ring_image: np.ndarray | None, grid: Grid) -> None:
+        self._place(self.points_image, points, grid)
+        self._place(self._rings_image, ring_image, grid)
         self._grid = grid
+
+    @staticmethod
+    def _place(item: pg.ImageItem, image: np.ndarray | None, grid: Grid | None) -> None:
+        """Show ``image`` in ``item`` over ``grid``'s rectangle (None: show nothing)."""
+        if image is None or grid is None:
+            item.clear()
+            return
+        item.setImage(image, autoLevels=False)
+        item.setRect(QRectF(grid.x0, grid.y0, grid.width * grid.px, grid.height * grid.py))
 
     def _nearest(self, scene_pos: QPointF) -> int:
         """Row of the shown point nearest ``scene_pos`` within the pixel tolerance, or -1."""

@@ -182,6 +182,30 @@ def test_set_colors_recolours_in_place(qtbot, latent_map: LatentMap) -> None:
     assert latent_map.point_colors()[:, :3].tolist() == [list(GREEN)] * 5
 
 
+def test_a_large_selection_is_ringed_in_the_image_and_follows_the_view(qtbot, show) -> None:
+    widget = show(LatentMap(rings_above=2))
+    widget.set_points(XY, np.full((5, 3), 90, np.uint8), IDS)
+    widget.view_box.setRange(xRange=(-0.5, 1.5), yRange=(-0.5, 1.5), padding=0)
+    widget.set_selection([0, 1, 3])  # more than 2: rings in the image, no scatter
+    assert len(widget._highlight.data) == 0
+
+    def ring_at(row: int, offsets: range) -> bool:
+        """Whether the selection colour is drawn at any of ``offsets`` pixels right of the row's point."""
+        qtbot.waitUntil(lambda: not widget.rendering(), timeout=5000)
+        qtbot.wait(10)
+        image = widget.plot.viewport().grab().toImage()
+        centre = _pixel(widget, XY[row])
+        return any(image.pixelColor(centre + QPoint(dx, 0)).getRgb()[:3] == (255, 255, 255) for dx in offsets)
+
+    ring, inside, beyond = range(6, 9), range(-4, 5), range(10, 14)  # a ring of radius 7, 2 px wide
+    assert [ring_at(row, ring) for row in range(5)] == [True, True, False, True, False]
+    assert not any(ring_at(row, inside) or ring_at(row, beyond) for row in range(5))
+    widget.view_box.setRange(xRange=(-0.2, 0.3), yRange=(-0.2, 0.3), padding=0)  # 4 x zoom on row 0
+    assert ring_at(0, ring) and ring_at(0, range(-8, -5)) and not ring_at(0, beyond)
+    widget.set_selection([0])
+    assert len(widget._highlight.data) == 1
+
+
 def test_zooming_in_renders_again_at_the_new_scale(qtbot, latent_map: LatentMap) -> None:
     sx, _ = latent_map.view_box.viewPixelSize()
     pair = np.array([[0.5, 0.5], [0.5 + 0.3 * sx, 0.5]])  # both in one pixel

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from widgets._raster import Grid, density, disc_offsets, discs
+from widgets._raster import Grid, density, disc_offsets, discs, rings
 
 GRID = Grid(x0=0.0, y0=0.0, px=1.0, py=1.0, width=23, height=17)
 
@@ -42,3 +42,16 @@ def test_density_is_the_mean_colour_and_more_opaque_with_more_points() -> None:
     assert np.count_nonzero(image[..., 3]) == 2  # the point at x = 30 lies outside
     keep = np.array([True, False, True, True, True, True, True])
     assert density(xy, rgba, GRID, keep=keep)[1, 1].tolist() == [255, 0, 0, 90]
+
+
+def test_rings_are_within_the_outer_radius_of_a_point_and_beyond_the_inner_of_all() -> None:
+    rng = np.random.default_rng(1)
+    xy = np.concatenate([rng.uniform(-9, 32, size=(25, 2)), [[4.5, 4.5], [6.5, 4.5]]])  # two overlap
+    image = rings(xy, (255, 255, 255, 255), GRID, inner=2.0, outer=4.0)
+    col, row = GRID.pixels(xy)
+    rr, cc = np.mgrid[0 : GRID.height, 0 : GRID.width]
+    d2 = (cc[..., None] - col) ** 2 + (rr[..., None] - row) ** 2
+    expected = (d2.min(axis=-1) <= 16) & (d2.min(axis=-1) > 4)
+    np.testing.assert_array_equal(image[..., 3] == 255, expected)
+    assert expected[4, 9] and not expected[4, 5]  # on the pair's outline; between the two, inside
+    assert np.all(image[expected] == 255) and np.all(image[~expected] == 0)
