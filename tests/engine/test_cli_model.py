@@ -30,15 +30,6 @@ def odmo(monkeypatch, tmp_path):
     return run
 
 
-@pytest.fixture(scope="module")
-def data_dir(tmp_path_factory, procedural_clips) -> Path:
-    """The procedural clips as NPZ files named ``{action}_{style}_{k}.npz``."""
-    folder = tmp_path_factory.mktemp("procedural_npz")
-    for clip in procedural_clips:
-        write_motion(clip, folder / f"{Path(clip.meta['source']).name}.npz")
-    return folder
-
-
 @pytest.fixture
 def model_copy(tiny_model_dir, tmp_path) -> Path:
     """A copy of the tiny model folder that a test may change."""
@@ -103,8 +94,8 @@ def test_interpolate_from_a_mode_to_a_bank_code(odmo, tiny_model_dir, tmp_path):
     np.testing.assert_allclose(last.joints, decode(loaded, loaded.bank.codes[i], walk).joints, atol=1e-6)
 
 
-def test_encode_prints_code_action_and_mode(odmo, tiny_model_dir, data_dir, capsys):
-    path = sorted(data_dir.glob("wave_*.npz"))[0]
+def test_encode_prints_code_action_and_mode(odmo, tiny_model_dir, procedural_npz_dir, capsys):
+    path = sorted(procedural_npz_dir.glob("wave_*.npz"))[0]
     assert odmo("encode", "--model", tiny_model_dir, path, "--json") == 0
     report = json.loads(capsys.readouterr().out)
     code, guess = encode(load_model(tiny_model_dir), read_motion(path))
@@ -147,9 +138,19 @@ def test_corrupt_weights_are_one_line(odmo, model_copy, tmp_path, capsys):
     _one_error_line(capsys, "corrupt weights")
 
 
-def test_bank_rebuilds_the_training_codes(odmo, model_copy, data_dir, tiny_model_dir):
+def test_bank_rebuilds_the_training_codes(odmo, model_copy, procedural_npz_dir, tiny_model_dir):
     (model_copy / BANK_FILE).unlink()
-    argv = ["bank", "--model", model_copy, "--data", data_dir, "--pattern", PATTERN, "--projections", "pca"]
+    argv = [
+        "bank",
+        "--model",
+        model_copy,
+        "--data",
+        procedural_npz_dir,
+        "--pattern",
+        PATTERN,
+        "--projections",
+        "pca",
+    ]
     assert odmo(*argv) == 0
     rebuilt = load_model(model_copy).bank
     original = load_model(tiny_model_dir).bank
@@ -164,12 +165,24 @@ def _distances(joints: np.ndarray) -> np.ndarray:
     return np.linalg.norm(joints[:, None] - joints[:, :, None], axis=-1)
 
 
-def test_bank_with_a_stride_makes_each_long_clip_a_path_of_window_codes(odmo, model_copy, data_dir, capsys):
-    argv = ["bank", "--model", model_copy, "--data", data_dir, "--pattern", PATTERN, "--projections", "pca"]
+def test_bank_with_a_stride_makes_each_long_clip_a_path_of_window_codes(
+    odmo, model_copy, procedural_npz_dir, capsys
+):
+    argv = [
+        "bank",
+        "--model",
+        model_copy,
+        "--data",
+        procedural_npz_dir,
+        "--pattern",
+        PATTERN,
+        "--projections",
+        "pca",
+    ]
     assert odmo(*argv, "--stride", 20) == 0
     loaded = load_model(model_copy)
     bank, window = loaded.bank, loaded.window
-    for path in sorted(data_dir.glob("*.npz"))[::9]:
+    for path in sorted(procedural_npz_dir.glob("*.npz"))[::9]:
         clip = read_motion(path)
         rows = [i for i, source in enumerate(bank.sources) if source == path.name]
         starts = [bank.meta[i]["window_start"] for i in rows]
@@ -188,13 +201,23 @@ def test_bank_with_a_stride_makes_each_long_clip_a_path_of_window_codes(odmo, mo
     assert "--stride: must be at least 1" in capsys.readouterr().err
 
 
-def test_bank_takes_any_kind_that_encodes(odmo, tiny_a2m_dir, data_dir, tmp_path):
+def test_bank_takes_any_kind_that_encodes(odmo, tiny_a2m_dir, procedural_npz_dir, tmp_path):
     model = Path(shutil.copytree(tiny_a2m_dir, tmp_path / "a2m"))
-    argv = ["bank", "--model", model, "--data", data_dir, "--pattern", PATTERN, "--projections", "pca"]
+    argv = [
+        "bank",
+        "--model",
+        model,
+        "--data",
+        procedural_npz_dir,
+        "--pattern",
+        PATTERN,
+        "--projections",
+        "pca",
+    ]
     assert odmo(*argv) == 0
     generator = open_generator(model)
     bank = generator.bank
-    files = sorted(data_dir.glob("*.npz"))
+    files = sorted(procedural_npz_dir.glob("*.npz"))
     assert sorted(bank.sources) == sorted(p.name for p in files)
     for path in files[::17]:
         [row] = np.flatnonzero(bank.sources == path.name)
@@ -206,7 +229,7 @@ def test_bank_takes_any_kind_that_encodes(odmo, tiny_a2m_dir, data_dir, tmp_path
 
 
 @pytest.mark.slow
-def test_train_writes_a_loadable_model(odmo, data_dir, tmp_path, capsys):
+def test_train_writes_a_loadable_model(odmo, procedural_npz_dir, tmp_path, capsys):
     sizes = [
         "enc_hidden=8",
         "enc_fc=16",
@@ -217,44 +240,90 @@ def test_train_writes_a_loadable_model(odmo, data_dir, tmp_path, capsys):
     ]
     settings = [x for s in sizes for x in ("--set", s)]
     out = tmp_path / "m"
-    argv = ["train", "--data", data_dir, "--pattern", PATTERN, "--out", out, "--epochs", 1, "--device", "cpu"]
+    argv = [
+        "train",
+        "--data",
+        procedural_npz_dir,
+        "--pattern",
+        PATTERN,
+        "--out",
+        out,
+        "--epochs",
+        1,
+        "--device",
+        "cpu",
+    ]
     assert odmo(*argv, *settings, "--projections", "pca") == 0
     captured = capsys.readouterr()
     assert "epoch 1/1" in captured.err and "steps/s" in captured.err
     loaded = load_model(out)
     assert loaded.action_names == ["jump", "walk", "wave"] and loaded.config.motion_hidden == 8
-    assert loaded.bank is not None and len(loaded.bank.codes) == len(list(data_dir.glob("*.npz")))
+    assert loaded.bank is not None and len(loaded.bank.codes) == len(list(procedural_npz_dir.glob("*.npz")))
 
 
-def test_train_rejects_unknown_settings(odmo, data_dir, tmp_path, capsys):
-    argv = ["train", "--data", data_dir, "--pattern", PATTERN, "--out", tmp_path / "m", "--set", "depth=3"]
+def test_train_rejects_unknown_settings(odmo, procedural_npz_dir, tmp_path, capsys):
+    argv = [
+        "train",
+        "--data",
+        procedural_npz_dir,
+        "--pattern",
+        PATTERN,
+        "--out",
+        tmp_path / "m",
+        "--set",
+        "depth=3",
+    ]
     assert odmo(*argv) == 1
     _one_error_line(capsys, "depth")
 
 
 @pytest.mark.slow
-def test_train_a2m_baseline_writes_a_loadable_model(odmo, data_dir, tmp_path):
+def test_train_a2m_baseline_writes_a_loadable_model(odmo, procedural_npz_dir, tmp_path):
     from engine.generators.a2m import load_a2m
 
     settings = [
         x for s in ("hidden=8", "latent_dim=4", "batch_size=8", "epoch_size=16") for x in ("--set", s)
     ]
     out = tmp_path / "a2m"
-    argv = ["train", "--arch", "a2m", "--data", data_dir, "--pattern", PATTERN, "--out", out, "--epochs", 1]
+    argv = [
+        "train",
+        "--arch",
+        "a2m",
+        "--data",
+        procedural_npz_dir,
+        "--pattern",
+        PATTERN,
+        "--out",
+        out,
+        "--epochs",
+        1,
+    ]
     assert odmo(*argv, *settings) == 0
     loaded = load_a2m(out)
     assert loaded.config.hidden == 8 and loaded.action_names == ["jump", "walk", "wave"]
 
 
 @pytest.mark.slow
-def test_train_modi_writes_a_model_that_samples_without_an_action(odmo, data_dir, tmp_path):
+def test_train_modi_writes_a_model_that_samples_without_an_action(odmo, procedural_npz_dir, tmp_path):
     from engine.generators import SampleRequest, open_generator
 
     small = ("levels=3", "window=16", "channels=16", "min_channels=8", "w_dim=16", "mapping_layers=2",
              "batch_size=4", "epoch_size=8")  # fmt: skip
     settings = [x for s in small for x in ("--set", s)]
     out = tmp_path / "modi"
-    argv = ["train", "--arch", "modi", "--data", data_dir, "--pattern", PATTERN, "--out", out, "--epochs", 1]
+    argv = [
+        "train",
+        "--arch",
+        "modi",
+        "--data",
+        procedural_npz_dir,
+        "--pattern",
+        PATTERN,
+        "--out",
+        out,
+        "--epochs",
+        1,
+    ]
     assert odmo(*argv, *settings, "--projections", "pca") == 0
     generator = open_generator(out)
     assert generator.kind == "modi" and generator.label_names == ["jump", "walk", "wave"]

@@ -16,7 +16,6 @@ from safetensors.numpy import load_file
 
 from engine.errors import ConfigError
 from engine.modelio import WEIGHTS_FILE, load_model
-from engine.motion.formats import write_motion
 from engine.train.distributed import Ranks
 
 PATTERN = r"^(?P<action>[a-z]+)_(?P<style>[a-z-]+)_\d+"
@@ -27,15 +26,6 @@ EXACT = ("window=40", "w_skate=0")
 # Two processes add their gradients in another order than one does; over 8 Adam steps the float32
 # rounding moves decoded joints by about 0.03 mm. Training one rank's half batch alone moves them ~90 mm.
 JOINT_ATOL_M = 5e-4
-
-
-@pytest.fixture(scope="module")
-def clips_dir(tmp_path_factory, procedural_clips) -> Path:
-    """The procedural clips as NPZ files named ``{action}_{style}_{k}.npz``."""
-    folder = tmp_path_factory.mktemp("ddp_clips")
-    for clip in procedural_clips:
-        write_motion(clip, folder / f"{Path(clip.meta['source']).name}.npz")
-    return folder
 
 
 def _train(
@@ -53,17 +43,17 @@ def _torchrun(n: int) -> tuple[str, ...]:
 
 
 @pytest.fixture(scope="module")
-def runs(clips_dir, tmp_path_factory) -> dict[str, Path]:
+def runs(procedural_npz_dir, tmp_path_factory) -> dict[str, Path]:
     """The same training in one process, in two torchrun processes, and in two for its first epoch then
     one (resumed); and one process on half the batch."""
     root = tmp_path_factory.mktemp("ddp_runs")
     made = {
-        "single": _train(clips_dir, root / "single", sys.executable),
-        "double": _train(clips_dir, root / "double", *_torchrun(2)),
-        "half": _train(clips_dir, root / "half", sys.executable, extra=("--set", "batch_size=8")),
-        "resumed": _train(clips_dir, root / "resumed", *_torchrun(2), epochs=1),
+        "single": _train(procedural_npz_dir, root / "single", sys.executable),
+        "double": _train(procedural_npz_dir, root / "double", *_torchrun(2)),
+        "half": _train(procedural_npz_dir, root / "half", sys.executable, extra=("--set", "batch_size=8")),
+        "resumed": _train(procedural_npz_dir, root / "resumed", *_torchrun(2), epochs=1),
     }
-    made["resumed"] = _train(clips_dir, root / "resumed", sys.executable, extra=("--resume",))
+    made["resumed"] = _train(procedural_npz_dir, root / "resumed", sys.executable, extra=("--resume",))
     for done in made.values():
         assert done.returncode == 0, done.stderr[-3000:]
     return {name: root / name for name in made}
@@ -118,8 +108,8 @@ def test_a_batch_that_does_not_split_evenly_is_refused():
         Ranks(0, 3).share(8)
 
 
-def test_a_kind_that_trains_in_one_process_says_so(clips_dir, tmp_path):
-    done = _train(clips_dir, tmp_path / "a2m", *_torchrun(2), extra=("--arch", "a2m"))
+def test_a_kind_that_trains_in_one_process_says_so(procedural_npz_dir, tmp_path):
+    done = _train(procedural_npz_dir, tmp_path / "a2m", *_torchrun(2), extra=("--arch", "a2m"))
     assert done.returncode != 0
     mine = [line for line in done.stderr.splitlines() if line.startswith("odmo train: error:")]
     assert (
