@@ -65,6 +65,7 @@ class Projection:
             raise ConfigError("codes contain NaN or infinite values")
         if self.max_fit is None or len(x) <= self.max_fit:
             self._set_fitted(x, self._fit(x.astype(np.float64)))
+            log.info("fitted the %s map of %d codes", self.name, len(x))
         else:
             rows = np.sort(np.random.default_rng(self.seed).choice(len(x), self.max_fit, replace=False))
             sample = self._fit(x[rows].astype(np.float64))
@@ -72,7 +73,9 @@ class Projection:
             embedding = self._transform(x.astype(np.float64))
             embedding[rows] = sample
             self._set_fitted(x, embedding)
-        log.info("fitted the %s map of %d codes", self.name, len(x))
+            log.info(
+                "fitted the %s map on %d of its %d codes, placed the rest", self.name, self.max_fit, len(x)
+            )
         return self
 
     def _set_fitted(self, codes: np.ndarray, embedding: np.ndarray) -> None:

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import warnings
+
 import torch
 import torch.distributed as dist
 import torch.nn.functional as F  # noqa: N812
@@ -28,14 +30,17 @@ class SampleSafeBatchNorm1d(nn.BatchNorm1d):
         sums go through torch.distributed's differentiable all-reduce."""
         xf, f = x.float(), x.shape[1]
         count = xf.new_full((1,), float(x.shape[0]))
-        sums = all_reduce(torch.cat([xf.sum(0), xf.square().sum(0), count]))
+        with warnings.catch_warnings():  # torch 2.13 marks it deprecated; it is the differentiable one
+            warnings.simplefilter("ignore", FutureWarning)
+            sums = all_reduce(torch.cat([xf.sum(0), xf.square().sum(0), count]))
         n = sums[-1]
         mean = sums[:f] / n
         var = (sums[f : 2 * f] / n - mean.square()).clamp(min=0.0)
         with torch.no_grad():
             self.num_batches_tracked.add_(1)
-            self.running_mean.lerp_(mean, self.momentum)
-            self.running_var.lerp_(var * n / (n - 1).clamp(min=1.0), self.momentum)
+            weight = self.momentum if self.momentum is not None else 1.0 / float(self.num_batches_tracked)
+            self.running_mean.lerp_(mean, weight)
+            self.running_var.lerp_(var * n / (n - 1).clamp(min=1.0), weight)
         return ((xf - mean) * torch.rsqrt(var + self.eps) * self.weight + self.bias).to(x.dtype)
 
 

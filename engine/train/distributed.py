@@ -65,11 +65,28 @@ def rank_device(device: torch.device, ranks: Ranks) -> torch.device:
 
 
 def parallel(module: torch.nn.Module, ranks: Ranks) -> torch.nn.Module:
-    """``module`` wrapped in DistributedDataParallel across the ranks (itself for one process)."""
+    """``module`` wrapped in DistributedDataParallel across the ranks (itself for one process); parameters
+    a step leaves out (a loss term weighted 0) are allowed."""
     if not ranks.distributed:
         return module
     device = next(module.parameters()).device
-    return DistributedDataParallel(module, device_ids=[device.index] if device.type == "cuda" else None)
+    ids = [device.index] if device.type == "cuda" else None
+    return DistributedDataParallel(module, device_ids=ids, find_unused_parameters=True)
+
+
+def same_on_every_rank(value: int, what: str, ranks: Ranks) -> None:
+    """ConfigError unless every rank holds the same ``value`` (e.g. the epoch each resumed from)."""
+    if not ranks.distributed:
+        return
+    found = torch.tensor([value, -value], dtype=torch.int64)
+    if dist.get_backend() == "nccl":
+        found = found.cuda()
+    dist.all_reduce(found, op=dist.ReduceOp.MAX)
+    high, low = int(found[0]), -int(found[1])
+    if high != low:
+        raise ConfigError(
+            f"the processes disagree on {what} ({low} to {high}); is --out on a shared file system?"
+        )
 
 
 def mean_over_ranks(terms: dict[str, float], ranks: Ranks) -> dict[str, float]:

@@ -24,7 +24,7 @@ from engine.fileio import atomic_write_text
 from engine.latent.bank import LatentBank
 from engine.model.config_base import ModelConfig
 from engine.train.checkpoint import checkpoint_path, load_checkpoint, save_checkpoint
-from engine.train.distributed import SINGLE, Ranks
+from engine.train.distributed import SINGLE, Ranks, same_on_every_rank
 from engine.train.windows import PreparedClips
 
 log = logging.getLogger(__name__)
@@ -173,7 +173,8 @@ def run_epochs(
 
     ``resume`` continues exactly from that checkpoint (RNG states included); one made with another
     ``identity`` (see ``run_identity``) raises ModelFormatError. ``cancel`` is checked before every step;
-    cancelling raises CancelledError and keeps the last checkpoint.
+    cancelling raises CancelledError and keeps the last checkpoint (across ranks it must fire on every
+    rank: one rank that stops leaves the others waiting in the next all-reduce).
     """
     out = Path(out_dir)
     ckpt = checkpoint_path(out)
@@ -189,6 +190,7 @@ def run_epochs(
         log.info("resuming %s after epoch %d", out, start)
     elif resume:
         log.info("%s: no checkpoint, training from scratch", ckpt)
+    same_on_every_rank(start, "the epoch to resume from", ranks)
 
     train_losses: dict[str, float] = {}
     val_losses: dict[str, float] | None = None

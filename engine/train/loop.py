@@ -12,6 +12,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from engine.errors import ConfigError
 from engine.latent.bank import build_bank
 from engine.model.config import OdmoConfig
 from engine.model.losses import LOSS_TERMS, odmo_losses
@@ -183,7 +184,6 @@ class OdmoSteps:
     ) -> None:
         self.model = self.modules = model
         self.ranks = ranks
-        self.loss = parallel(_StepLoss(model, prepared.skeleton.root), ranks)
         self.config = model.config
         self.prepared = prepared
         self.sampler = PairSampler(prepared.actions, train_idx)
@@ -193,6 +193,12 @@ class OdmoSteps:
         self.optimizers = (self.optimizer,)
         self.n_pairs = self.config.batch_size // 2
         self.windows_per_step = 2 * self.n_pairs
+        if self.n_pairs % ranks.world:
+            raise ConfigError(
+                f"batch_size {self.config.batch_size} does not split into equal shares of pairs over "
+                f"{ranks.world} processes; use a multiple of {2 * ranks.world}"
+            )
+        self.loss = parallel(_StepLoss(model, prepared.skeleton.root), ranks)
 
     def step(self, epoch: int, rng: np.random.Generator, generator: torch.Generator) -> dict[str, float]:
         """One Adam step on a fresh batch of anchors and their partners."""
