@@ -5,7 +5,8 @@ The skeleton is the bundled model's (Bandai-Namco, 21 joints) so that the bone p
 bone directions the decoder runs) and the foot clean-up are timed on real topology; they have their
 own rows, with the torch FK of local rotations (what a rotation-output decoder would run) beside them.
 Reference (public ODMO modules, same machine class): 17.9 ms for a batch of 2, 1,861 motions/s at batch
-1024; aim: < 6 ms, >= 5,000/s.
+1024; aim: < 6 ms, >= 5,000/s. The reduced-precision rows decode the bundled model's bank codes under
+bfloat16 autocast against float32 in the same run: the speed ratio and the largest joint difference.
 """
 
 from __future__ import annotations
@@ -27,7 +28,8 @@ from bench._report import record
 from engine.generate import decode, decode_array
 from engine.model.config import OdmoConfig
 from engine.model.odmo import OdmoModel
-from engine.modelio import LoadedModel
+from engine.model.precision import bfloat16_autocast, native_bfloat16
+from engine.modelio import LoadedModel, load_model
 from engine.motion.contact import foot_joints
 from engine.motion.ik import plant_feet
 from engine.motion.kinematics import BoneProjection, forward_kinematics, rotation_6d_to_matrix
@@ -146,6 +148,37 @@ def _decodes(loaded: LoadedModel, rng: np.random.Generator, repeats: int) -> lis
     return rows
 
 
+def _reduced_precision(repeats: int) -> list[dict[str, object]]:
+    """The bundled model's decode of its bank codes under bfloat16 autocast against float32: time, speed-up
+    and the largest joint difference, at batch 1, 64 and 1024."""
+    loaded = load_model(BUNDLED.parent)
+    model, bank = loaded.model, loaded.bank
+    rows: list[dict[str, object]] = []
+    for batch in (1, 64, 1024):
+        rows_of = np.arange(batch) % len(bank.codes)
+        z, a, e = (torch.from_numpy(x[rows_of]) for x in (bank.codes, bank.actions, bank.ends))
+        n = max(3, repeats // max(1, batch // 16))
+        with torch.inference_mode():
+            exact = model.decode(z, a, e)[0]
+            f32 = _timed(lambda z=z, a=a, e=e: model.decode(z, a, e), n)
+            with bfloat16_autocast("cpu"):
+                reduced = model.decode(z, a, e)[0].float()
+                b16 = _timed(lambda z=z, a=a, e=e: model.decode(z, a, e), n)
+        error = torch.linalg.vector_norm(reduced - exact, dim=-1)
+        rows.append(
+            {
+                "what": "bundled model decode, bfloat16 autocast"
+                + ("" if native_bfloat16("cpu") else " (no bfloat16 instructions)"),
+                "batch": batch,
+                "ms": round(b16 * 1e3, 2),
+                "motions/s": round(batch / b16),
+                "vs float32": f"{f32 / b16:.2f}x",
+                "max joint difference mm": round(float(error.max()) * 1e3, 1),
+            }
+        )
+    return rows
+
+
 def _kinematics(skeleton: Skeleton, config: OdmoConfig, rng: np.random.Generator) -> list[dict[str, object]]:
     """Time the bone projection, the foot clean-up and, for comparison, torch FK of 6D local rotations."""
     rows = []
@@ -195,7 +228,7 @@ def main(argv: list[str] | None = None) -> int:
         torch.set_num_threads(threads)
         rng = np.random.default_rng(0)
         part = _decodes(loaded, rng, args.repeats) + _stages(model, rng, config)
-        part += _kinematics(skeleton, config, rng)
+        part += _kinematics(skeleton, config, rng) + _reduced_precision(args.repeats)
         rows += [{"threads": threads} | row for row in part]
     for row in rows:
         print(row)
