@@ -170,7 +170,9 @@ def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
         "--previous-label", action="append", default=[], help="what each odmo_previous row is called"
     )
     args = p.parse_args(argv)
-    if args.data is None and not args.modi_only:
+    if args.modi_only:
+        return args
+    if args.data is None:
         p.error("--data is required (except with --modi-only)")
     args.rows = [r.strip() for r in args.rows.split(",") if r.strip()]
     unknown = sorted(set(args.rows) - set(ROWS))

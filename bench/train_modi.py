@@ -152,9 +152,33 @@ def main() -> int:
     atomic_write_text(out / "heldout_clips.txt", "\n".join(heldout) + "\n")
     meta = report["meta"] | {"model": out.name, "classifier": repo_path(args.classifier), "split": args.split}
     atomic_write_text(out / "eval.json", json.dumps(report | {"meta": meta}, indent=2))
-    card = model_card(report, generator, summary, sys.argv[1:], held, prepared.fingerprint(), args.split)
+    edits_path = out / "edits.json"
+    edits = json.loads(edits_path.read_text()) if edits_path.is_file() else None
+    card = model_card(
+        report, generator, summary, sys.argv[1:], held, prepared.fingerprint(), args.split, edits
+    )
     atomic_write_text(out / "MODEL_CARD.md", card)
     return 0
+
+
+EDIT_RAISED, EDIT_KEPT = 0.8, 0.9  # the issue's shares of edits that raise the style / keep the action
+
+
+def edit_targets(edits: dict[str, Any] | None) -> list[str]:
+    """The card's style-edit lines: each edit's shares, and whether elderly and two others pass."""
+    if edits is None:
+        return ["- Style edits: not measured (run bench/modi_edits.py into the folder's edits.json)."]
+    passed = {e["target"]: e["raised"] >= EDIT_RAISED and e["kept"] >= EDIT_KEPT for e in edits["edits"]}
+    ok = passed.get("elderly", False) and sum(passed.values()) >= 3
+    shares = "; ".join(
+        f"{e['target']} raised {e['raised']:.0%}, action kept {e['kept']:.0%}" for e in edits["edits"]
+    )
+    return [
+        f"- Style edits {edits['source_style']} → style (amount {edits['amount']:g}, {edits['n_codes']} "
+        f"inverted clips; a style classifier of held-out accuracy {edits['style_classifier_accuracy']:.3f}, "
+        f"bench/modi_edits.py): {shares}. Elderly and two others at ≥ {EDIT_RAISED:.0%} raised and "
+        f"≥ {EDIT_KEPT:.0%} kept — {_met(ok)}",
+    ]
 
 
 def _met(ok: bool) -> str:
@@ -169,8 +193,10 @@ def model_card(
     held: list[Motion],
     fingerprint: str,
     split: str,
+    edits: dict[str, Any] | None = None,
 ) -> str:
-    """MODEL_CARD.md from the evaluation report and the training summary (never typed by hand)."""
+    """MODEL_CARD.md from the evaluation report, the training summary and ``edits`` (the report of
+    bench/modi_edits.py, when the folder has one); never typed by hand."""
     gen, real = report["generated"], report["real"]
     config: ModiConfig = generator.loaded.config
     provenance = generator.loaded.provenance
@@ -218,7 +244,7 @@ def model_card(
         f"- W+ inversion of {meta['n_inverted_clips']} held-out clips, mean joint error ≤ 5 cm: "
         f"{100 * inversion:.1f} cm — {_met(inversion <= 0.05)}",
         *physics_targets(report),
-        "- Style edits measured by a style classifier: not measured yet (no style classifier is trained).",
+        *edit_targets(edits),
         "",
         "## Evaluation",
         "",

@@ -23,7 +23,7 @@ from engine.npyio import load_npz
 log = logging.getLogger(__name__)
 
 FORMAT = "odmo-latent-bank"
-FORMAT_VERSION = 1
+FORMAT_VERSION = 2  # 2: a map fitted on the bank's own codes stores no copy of them
 
 
 @dataclass
@@ -100,7 +100,10 @@ class LatentBank:
         for action, model in self.modes.items():
             arrays.update(model.to_arrays(f"modes/{action}/"))
         for name, projection in self.projections.items():
-            arrays.update(projection.to_arrays(f"projections/{name}/"))
+            prefix = f"projections/{name}/"
+            arrays.update(projection.to_arrays(prefix))
+            if np.array_equal(arrays[f"{prefix}codes"], arrays["codes"]):
+                del arrays[f"{prefix}codes"]
         buffer = io.BytesIO()
         np.savez(buffer, **arrays)
         return buffer.getvalue()
@@ -149,6 +152,9 @@ class LatentBank:
             )
         if version < 1:
             raise ModelFormatError(f"invalid latent bank format version {version}")
+        if version >= 2:
+            shared = {f"projections/{n}/codes": arrays["codes"] for n in arrays["projection_names"]}
+            arrays = shared | arrays
         bank = cls(
             codes=arrays["codes"],
             actions=arrays["actions"],

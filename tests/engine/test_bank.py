@@ -98,6 +98,21 @@ def test_file_has_no_object_arrays_and_a_version(saved: Path) -> None:
     assert sorted(p.name for p in saved.parent.iterdir()) == ["bank.npz"]  # no temporary left behind
 
 
+def test_maps_fitted_on_the_bank_codes_store_no_copy_and_version_1_files_still_load(
+    bank: LatentBank, saved: Path, tmp_path: Path
+) -> None:
+    with np.load(saved, allow_pickle=False) as npz:
+        assert not [key for key in npz.files if key.startswith("projections/") and key.endswith("/codes")]
+    copies = {f"projections/{name}/codes": bank.codes for name in bank.projections}
+    old = rewritten(saved, tmp_path, version=np.asarray(1, dtype=np.int64), **copies)
+    back = LatentBank.load(old)
+    for name, projection in bank.projections.items():
+        np.testing.assert_array_equal(back.projections[name].codes_, projection.codes_)
+    without = rewritten(saved, tmp_path, version=np.asarray(1, dtype=np.int64))
+    with pytest.raises(ModelFormatError, match=r"projections/.*/codes"):
+        LatentBank.load(without)  # version 1 kept the copies: a file without them is damaged
+
+
 def rewritten(saved: Path, tmp_path: Path, **changes: np.ndarray | None) -> Path:
     """A copy of the saved bank with some arrays replaced (None: removed)."""
     with np.load(saved, allow_pickle=False) as npz:

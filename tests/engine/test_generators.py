@@ -36,6 +36,7 @@ FOLDERS = {
     "a2m-baseline": "tiny_a2m_old_dir",
     "bandai2-a2m": "bundled_a2m_dir",
     "modi": "tiny_modi_dir",
+    "bandai2-modi": "bundled_modi_dir",
 }
 BUNDLED_A2M = Path(__file__).resolve().parents[2] / "resources" / "models" / "bandai2-a2m"
 
@@ -44,6 +45,12 @@ BUNDLED_A2M = Path(__file__).resolve().parents[2] / "resources" / "models" / "ba
 def bundled_a2m_dir() -> Path:
     """The bundled Action2Motion model trained on Bandai-Namco-2."""
     return BUNDLED_A2M
+
+
+@pytest.fixture(scope="session")
+def bundled_modi_dir() -> Path:
+    """The bundled MoDi trained on Bandai-Namco-2."""
+    return BUNDLED_A2M.parent / "bandai2-modi"
 
 
 @pytest.fixture(params=sorted(FOLDERS))
