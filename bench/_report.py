@@ -62,3 +62,10 @@ def _cell(value: Any) -> str:
     """A table cell: floats with 4 significant digits, pipes escaped."""
     text = f"{value:.4g}" if isinstance(value, float) else str(value)
     return text.replace("|", "\\|")
+
+
+def publish(section: str, rows: list[dict[str, Any]], command: str, *, save: bool = True) -> None:
+    """Print ``section``'s Markdown and, with ``save``, record it in docs/BENCHMARKS.md."""
+    if save:
+        record(section, rows, command)
+    print(format_section(section, rows, command), end="")

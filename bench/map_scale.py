@@ -327,7 +327,7 @@ def main(argv: list[str] | None = None) -> int:
 
     from PySide6.QtWidgets import QApplication
 
-    from bench._report import format_section, record
+    from bench._report import publish
 
     app = QApplication.instance() or QApplication([])
     rng = np.random.default_rng(args.seed)
@@ -341,11 +341,7 @@ def main(argv: list[str] | None = None) -> int:
         f" --sizes {' '.join(map(str, args.sizes))} --redraw {args.redraw} --repeats {args.repeats}"
         f" --frames {args.frames}" + (" --no-reference" if args.no_reference else "")
     )
-    if args.no_record:
-        sys.stdout.write(format_section("map at scale", rows, command))
-    else:
-        record("map at scale", rows, command)
-        sys.stdout.write(format_section("map at scale", rows, command))
+    publish("map at scale", rows, command, save=not args.no_record)
     return 0
 
 

@@ -166,7 +166,7 @@ def main(argv: list[str] | None = None) -> int:
 
     from PySide6.QtWidgets import QApplication
 
-    from bench._report import format_section, record
+    from bench._report import publish
 
     app = QApplication.instance() or QApplication([])
     rng = np.random.default_rng(args.seed)
@@ -177,11 +177,7 @@ def main(argv: list[str] | None = None) -> int:
         f" --points {' '.join(map(str, args.points))} --skeletons {' '.join(map(str, args.skeletons))}"
         f" --repeats {args.repeats}"
     )
-    if args.no_record:
-        sys.stdout.write(format_section("widgets", rows, command))
-    else:
-        record("widgets", rows, command)
-        sys.stdout.write(format_section("widgets", rows, command))
+    publish("widgets", rows, command, save=not args.no_record)
     return 0
 
 
