@@ -36,6 +36,16 @@ def model_copy(tiny_model_dir, tmp_path) -> Path:
     return Path(shutil.copytree(tiny_model_dir, tmp_path / "model"))
 
 
+def _bank_argv(model: Path, data: Path) -> list[object]:
+    """``odmo bank`` of ``model`` on the procedural clips in ``data``, PCA only."""
+    return ["bank", "--model", model, "--data", data, "--pattern", PATTERN, "--projections", "pca"]
+
+
+def _train_argv(data: Path, out: Path, *options: object) -> list[object]:
+    """``odmo train`` (with ``options``) on the procedural clips in ``data`` into ``out``."""
+    return ["train", *options, "--data", data, "--pattern", PATTERN, "--out", out]
+
+
 def _one_error_line(capsys, *needles: str) -> None:
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1, err
@@ -140,17 +150,7 @@ def test_corrupt_weights_are_one_line(odmo, model_copy, tmp_path, capsys):
 
 def test_bank_rebuilds_the_training_codes(odmo, model_copy, procedural_npz_dir, tiny_model_dir):
     (model_copy / BANK_FILE).unlink()
-    argv = [
-        "bank",
-        "--model",
-        model_copy,
-        "--data",
-        procedural_npz_dir,
-        "--pattern",
-        PATTERN,
-        "--projections",
-        "pca",
-    ]
+    argv = _bank_argv(model_copy, procedural_npz_dir)
     assert odmo(*argv) == 0
     rebuilt = load_model(model_copy).bank
     original = load_model(tiny_model_dir).bank
@@ -168,17 +168,7 @@ def _distances(joints: np.ndarray) -> np.ndarray:
 def test_bank_with_a_stride_makes_each_long_clip_a_path_of_window_codes(
     odmo, model_copy, procedural_npz_dir, capsys
 ):
-    argv = [
-        "bank",
-        "--model",
-        model_copy,
-        "--data",
-        procedural_npz_dir,
-        "--pattern",
-        PATTERN,
-        "--projections",
-        "pca",
-    ]
+    argv = _bank_argv(model_copy, procedural_npz_dir)
     assert odmo(*argv, "--stride", 20) == 0
     loaded = load_model(model_copy)
     bank, window = loaded.bank, loaded.window
@@ -203,17 +193,7 @@ def test_bank_with_a_stride_makes_each_long_clip_a_path_of_window_codes(
 
 def test_bank_takes_any_kind_that_encodes(odmo, tiny_a2m_dir, procedural_npz_dir, tmp_path):
     model = Path(shutil.copytree(tiny_a2m_dir, tmp_path / "a2m"))
-    argv = [
-        "bank",
-        "--model",
-        model,
-        "--data",
-        procedural_npz_dir,
-        "--pattern",
-        PATTERN,
-        "--projections",
-        "pca",
-    ]
+    argv = _bank_argv(model, procedural_npz_dir)
     assert odmo(*argv) == 0
     generator = open_generator(model)
     bank = generator.bank
@@ -240,19 +220,7 @@ def test_train_writes_a_loadable_model(odmo, procedural_npz_dir, tmp_path, capsy
     ]
     settings = [x for s in sizes for x in ("--set", s)]
     out = tmp_path / "m"
-    argv = [
-        "train",
-        "--data",
-        procedural_npz_dir,
-        "--pattern",
-        PATTERN,
-        "--out",
-        out,
-        "--epochs",
-        1,
-        "--device",
-        "cpu",
-    ]
+    argv = [*_train_argv(procedural_npz_dir, out), "--epochs", 1, "--device", "cpu"]
     assert odmo(*argv, *settings, "--projections", "pca") == 0
     captured = capsys.readouterr()
     assert "epoch 1/1" in captured.err and "steps/s" in captured.err
@@ -262,17 +230,7 @@ def test_train_writes_a_loadable_model(odmo, procedural_npz_dir, tmp_path, capsy
 
 
 def test_train_rejects_unknown_settings(odmo, procedural_npz_dir, tmp_path, capsys):
-    argv = [
-        "train",
-        "--data",
-        procedural_npz_dir,
-        "--pattern",
-        PATTERN,
-        "--out",
-        tmp_path / "m",
-        "--set",
-        "depth=3",
-    ]
+    argv = [*_train_argv(procedural_npz_dir, tmp_path / "m"), "--set", "depth=3"]
     assert odmo(*argv) == 1
     _one_error_line(capsys, "depth")
 
@@ -285,19 +243,7 @@ def test_train_a2m_baseline_writes_a_loadable_model(odmo, procedural_npz_dir, tm
         x for s in ("hidden=8", "latent_dim=4", "batch_size=8", "epoch_size=16") for x in ("--set", s)
     ]
     out = tmp_path / "a2m"
-    argv = [
-        "train",
-        "--arch",
-        "a2m",
-        "--data",
-        procedural_npz_dir,
-        "--pattern",
-        PATTERN,
-        "--out",
-        out,
-        "--epochs",
-        1,
-    ]
+    argv = [*_train_argv(procedural_npz_dir, out, "--arch", "a2m"), "--epochs", 1]
     assert odmo(*argv, *settings) == 0
     loaded = load_a2m(out)
     assert loaded.config.hidden == 8 and loaded.action_names == ["jump", "walk", "wave"]
@@ -311,19 +257,7 @@ def test_train_modi_writes_a_model_that_samples_without_an_action(odmo, procedur
              "batch_size=4", "epoch_size=8")  # fmt: skip
     settings = [x for s in small for x in ("--set", s)]
     out = tmp_path / "modi"
-    argv = [
-        "train",
-        "--arch",
-        "modi",
-        "--data",
-        procedural_npz_dir,
-        "--pattern",
-        PATTERN,
-        "--out",
-        out,
-        "--epochs",
-        1,
-    ]
+    argv = [*_train_argv(procedural_npz_dir, out, "--arch", "modi"), "--epochs", 1]
     assert odmo(*argv, *settings, "--projections", "pca") == 0
     generator = open_generator(out)
     assert generator.kind == "modi" and generator.label_names == ["jump", "walk", "wave"]
