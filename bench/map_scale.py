@@ -22,19 +22,10 @@ import numpy as np
 if __package__ in (None, ""):
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+from bench._timing import timings_ms
+
 TARGETS_MS = {"frame": 16.0, "hover": 16.0, "pick": 16.0, "lasso": 100.0, "colour": 100.0}
 REDRAW_TARGET_MS = 16.0  # the 30k redraw
-
-
-def _timings_ms(step: Callable[[int], None], repeats: int) -> list[float]:
-    """Times in ms of ``step(i)`` over ``repeats`` calls (after one warm-up)."""
-    step(-1)
-    times = []
-    for i in range(repeats):
-        start = time.perf_counter()
-        step(i)
-        times.append((time.perf_counter() - start) * 1e3)
-    return times
 
 
 def _row(
@@ -124,7 +115,7 @@ class MapBench:
 
     def add(self, operation: str, step: Callable[[int], None], target: float | None, times: int = 0) -> None:
         """Time ``step`` (``times`` calls, default the repeats) into a row."""
-        timings = _timings_ms(step, times or self.repeats)
+        timings = timings_ms(step, times or self.repeats)
         self.rows.append(_row("LatentMap (raster)", operation, self.n, timings, target))
 
     def first_draw(self, _: int) -> None:
@@ -298,11 +289,11 @@ def bench_scatter(
         item = f"reference: ScatterPlotItem, {kind}"
         target = REDRAW_TARGET_MS if n == 30_000 else None
         rows.append(
-            _row(item, "setData + repaint (first draw)", n, _timings_ms(draw, max(3, repeats // 4)), target)
+            _row(item, "setData + repaint (first draw)", n, timings_ms(draw, max(3, repeats // 4)), target)
         )
         view_box.autoRange()
         frames.repaint()
-        timings = _timings_ms(frames.pan(0.01, 50), repeats)
+        timings = timings_ms(frames.pan(0.01, 50), repeats)
         rows.append(
             _row(item, "pan frame (1% of the view, 50 right then 50 left)", n, timings, TARGETS_MS["frame"])
         )

@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import argparse
 import sys
-import time
 from collections.abc import Callable
 from pathlib import Path
 
@@ -19,18 +18,15 @@ import numpy as np
 if __package__ in (None, ""):
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+from bench._timing import timings_ms
+
 # 21 joints: spine chain with head, two arms from the chest, two legs from the hips.
 PARENTS = np.array([-1, 0, 1, 2, 3, 4, 3, 6, 7, 8, 3, 10, 11, 12, 0, 14, 15, 16, 0, 18, 19])
 
 
 def _timings_ms(step: Callable[[int], None], repeats: int) -> tuple[float, float]:
     """Median and 90th percentile in ms of ``step(i)`` over ``repeats`` calls (after one warm-up)."""
-    step(-1)
-    times = []
-    for i in range(repeats):
-        start = time.perf_counter()
-        step(i)
-        times.append((time.perf_counter() - start) * 1e3)
+    times = timings_ms(step, repeats)
     return float(np.median(times)), float(np.percentile(times, 90))
 
 
