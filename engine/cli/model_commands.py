@@ -5,7 +5,6 @@ from __future__ import annotations
 import argparse
 import contextlib
 import json
-import os
 import re
 import sys
 from collections.abc import Callable, Iterator, Sequence
@@ -225,13 +224,12 @@ def _ranks(args: argparse.Namespace) -> Ranks:
     """The processes torchrun started for this training (one without torchrun); ConfigError for a kind
     that trains in one process only."""
     from engine.modelio import resolve_device
-    from engine.train.distributed import SINGLE, start
+    from engine.train.distributed import start
 
-    if int(os.environ.get("WORLD_SIZE", "1")) <= 1:
-        return SINGLE
-    if args.arch != "odmo":
+    ranks = start(resolve_device(args.device))
+    if ranks.distributed and args.arch != "odmo":
         raise ConfigError(f"--arch {args.arch} trains in one process; torchrun trains --arch odmo only")
-    return start(resolve_device(args.device))
+    return ranks
 
 
 def _cmd_bank(args: argparse.Namespace) -> int:

@@ -78,9 +78,7 @@ def same_on_every_rank(value: int, what: str, ranks: Ranks) -> None:
     """ConfigError unless every rank holds the same ``value`` (e.g. the epoch each resumed from)."""
     if not ranks.distributed:
         return
-    found = torch.tensor([value, -value], dtype=torch.int64)
-    if dist.get_backend() == "nccl":
-        found = found.cuda()
+    found = _for_backend(torch.tensor([value, -value], dtype=torch.int64))
     dist.all_reduce(found, op=dist.ReduceOp.MAX)
     high, low = int(found[0]), -int(found[1])
     if high != low:
@@ -93,11 +91,14 @@ def mean_over_ranks(terms: dict[str, float], ranks: Ranks) -> dict[str, float]:
     """Each loss term averaged over the ranks (the global batch's, for the log); as is for one process."""
     if not ranks.distributed:
         return terms
-    values = torch.tensor(list(terms.values()), dtype=torch.float64)
-    if dist.get_backend() == "nccl":
-        values = values.cuda()
+    values = _for_backend(torch.tensor(list(terms.values()), dtype=torch.float64))
     dist.all_reduce(values)
     return dict(zip(terms, (values / ranks.world).tolist(), strict=True))
+
+
+def _for_backend(tensor: torch.Tensor) -> torch.Tensor:
+    """``tensor`` where the process group's backend reduces it (NCCL: this rank's GPU)."""
+    return tensor.cuda() if dist.get_backend() == "nccl" else tensor
 
 
 def finish(ranks: Ranks) -> None:
