@@ -45,7 +45,7 @@ from engine.train.loop import train
 
 #: The bundled model's loss weights where they differ from OdmoConfig's defaults (README, "Where the model
 #: differs from the paper").
-BUNDLED_WEIGHTS = ("w_skate=0.01", "w_free=1", "w_speed=0.05", "w_velocity=0.1")
+BUNDLED_WEIGHTS = ("w_skate=0.01", "w_free=1", "w_speed=0.1", "w_velocity=0.1")
 DEFAULT_OUT = Path(__file__).resolve().parents[1] / "resources" / "models" / "bandai2-odmo"
 
 
@@ -69,6 +69,12 @@ def parse_args() -> argparse.Namespace:
         metavar="NAME=VALUE",
         help="a loss weight of OdmoConfig (w_*), e.g. --weight w_skate=1; repeatable, later ones win "
         f"(default: the bundled model's {' '.join(BUNDLED_WEIGHTS)})",
+    )
+    p.add_argument(
+        "--classifier",
+        type=Path,
+        help="evaluate with this classifier folder (e.g. the shipped model's classifier/) instead of "
+        "training one in --work/classifier",
     )
     p.add_argument("--classifier-epochs", type=int, default=20)
     p.add_argument(
@@ -140,8 +146,8 @@ def main() -> int:
             )
         )
     summary = json.loads((work / "train_summary.json").read_text())
-    clf_dir = work / "classifier"
-    if not (clf_dir / "classifier.json").is_file():
+    clf_dir = args.classifier or work / "classifier"
+    if args.classifier is None and not (clf_dir / "classifier.json").is_file():
         train_classifier(
             train_clips,
             names,
@@ -166,7 +172,8 @@ def main() -> int:
     out.mkdir(parents=True, exist_ok=True)
     for name in ("model.safetensors", "model.json", "latent_bank.npz", "train_log.csv"):
         shutil.copy2(work / name, out / name)
-    shutil.copytree(clf_dir, out / "classifier", dirs_exist_ok=True)
+    if clf_dir.resolve() != (out / "classifier").resolve():
+        shutil.copytree(clf_dir, out / "classifier", dirs_exist_ok=True)
     shipped = report | {"meta": report["meta"] | {"model": out.name, "classifier": "classifier"}}
     atomic_write_text(out / "eval.json", json.dumps(shipped, indent=2))  # no machine paths in what ships
     heldout = sorted(str(Path(c.meta["source"]).name) for c in test_clips)
