@@ -1,4 +1,4 @@
-"""``odmo train | bank | sample | interpolate | encode``: the model commands."""
+"""``odmo train | bank | sample | interpolate | encode | complete``: the model commands."""
 
 from __future__ import annotations
 
@@ -173,6 +173,11 @@ def _trainer(arch: str) -> tuple[type, Callable[..., Any]]:
         from engine.train.modi_loop import train_modi
 
         return ModiConfig, train_modi
+    if arch == "dvgan":
+        from engine.model.dvgan import DvganConfig
+        from engine.train.dvgan_loop import train_dvgan
+
+        return DvganConfig, train_dvgan
     from engine.model.config import OdmoConfig
     from engine.train.loop import train
 
@@ -294,7 +299,30 @@ def _cmd_sample(args: argparse.Namespace) -> int:
             require(generator, "truncate")
         if args.action is None and generator.action_names is not None:
             raise ConfigError(f"{args.model}: name an --action: {', '.join(generator.action_names)}")
-        write_samples(generator.sample(request), paths)
+        if args.frames is None:
+            write_samples(generator.sample(request), paths)
+        else:
+            require(generator, "extend", f"make {args.frames}-frame motions")
+            write_samples(generator.sample(request, frames=args.frames), paths)
+    return 0
+
+
+def _cmd_complete(args: argparse.Namespace) -> int:
+    from engine.generators import open_generator, require
+    from engine.motion.formats import read_motion, write_motion
+
+    check_count("--n", args.n)
+    with motion_outputs(args.out, args.n, f"{args.prefix.stem}_completed") as paths:
+        generator = open_generator(args.model)
+        require(generator, "complete")
+        prefix = read_motion(args.prefix, up_axis=args.up_axis)
+        if args.prefix_frames is not None:
+            prefix = prefix.with_joints(prefix.joints[: args.prefix_frames])
+        for motion, path in zip(
+            generator.complete(prefix, args.frames, args.n, args.seed, args.action), paths, strict=True
+        ):
+            write_motion(motion, path)
+            print(f"{path} ({motion.meta['prefix_frames']} prefix + {args.frames} frames)")
     return 0
 
 
@@ -361,7 +389,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--resume", action="store_true", help="continue from the folder's last checkpoint")
     p.add_argument(
-        "--arch", default="odmo", choices=("odmo", "a2m", "modi"), help="odmo (default), a2m or modi"
+        "--arch",
+        default="odmo",
+        choices=("odmo", "a2m", "modi", "dvgan"),
+        help="odmo (default), a2m, modi or dvgan",
     )
     p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", help="any model setting")
     p.set_defaults(func=_cmd_train)
@@ -392,6 +423,13 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )
     p.add_argument("--mode", type=int, default=None, help="sample only this mode (overrides --strategy)")
     p.add_argument("--n", type=int, default=1, help="how many motions")
+    p.add_argument(
+        "--frames",
+        type=positive_int,
+        default=None,
+        help="frames per motion (default: the model's window; "
+        "longer ones from a model that extends motions, DVGAN's RNN)",
+    )
     p.add_argument("--end", type=float, nargs=2, metavar=("X", "Z"), help="end location on the floor, metres")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument(
@@ -425,3 +463,22 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     add_up_axis(p)
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.set_defaults(func=_cmd_encode)
+
+    p = subparsers.add_parser(
+        "complete", help="continue the frames of a motion file several ways (DVGAN's RNN)"
+    )
+    p.add_argument("--model", type=Path, required=True, help="model folder")
+    p.add_argument("--prefix", type=Path, required=True, help="motion file (BVH, NPZ, NPY) to continue")
+    p.add_argument(
+        "--prefix-frames",
+        type=positive_int,
+        default=None,
+        help="use only its first FRAMES frames (at the file's rate)",
+    )
+    p.add_argument("--frames", type=positive_int, required=True, help="frames to add, at the model's rate")
+    p.add_argument("--n", type=int, default=1, help="how many continuations")
+    p.add_argument("--action", help="action phrase (default: the file's label)")
+    p.add_argument("--seed", type=int, default=0)
+    add_up_axis(p)
+    p.add_argument("--out", type=Path, required=True, help="a .npz/.bvh/.npy file (numbered) or a folder")
+    p.set_defaults(func=_cmd_complete)

@@ -283,8 +283,9 @@ def require(generator: Generator, capability: str, asked: str | None = None) -> 
 def _register_builtin() -> None:
     """Register the kinds this program ships (imported lazily: each brings in torch)."""
     if "odmo" not in _KINDS:
-        from engine.generators import a2m, modi, odmo
+        from engine.generators import a2m, dvgan, modi, odmo
 
         register_kind("odmo", odmo.open_odmo)
         register_kind("a2m", a2m.open_a2m)
         register_kind("modi", modi.open_modi)
+        register_kind("dvgan", dvgan.open_dvgan)
