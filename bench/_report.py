@@ -46,6 +46,19 @@ def format_section(section: str, rows: list[dict[str, Any]], command: str) -> st
     return "\n".join(lines) + "\n"
 
 
+def replace_section(path: Path, heading: str, body: str, before: str) -> None:
+    """Replace the section headed ``heading`` (up to the next ``## ``) of ``path`` with ``body``, or add
+    it in front of the line ``before``; atomically."""
+    text = path.read_text(encoding="utf-8")
+    found = re.search(rf"^{re.escape(heading)}\n.*?(?=^## )", text, re.MULTILINE | re.DOTALL)
+    if found:
+        text = text[: found.start()] + body + text[found.end() :]
+    else:
+        at = text.index(before)
+        text = text[:at] + body + text[at:]
+    atomic_write_text(path, text)
+
+
 def record(section: str, rows: list[dict[str, Any]], command: str, path: Path = BENCHMARKS) -> None:
     """Replace (or append) ``section`` of ``path`` with a table of ``rows``."""
     text = path.read_text(encoding="utf-8") if path.is_file() else _TITLE

@@ -15,7 +15,6 @@ import argparse
 import datetime as dt
 import json
 import logging
-import re
 import sys
 import time
 from collections.abc import Callable, Sequence
@@ -29,7 +28,7 @@ from tqdm import tqdm
 if __package__ in (None, ""):
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from bench._report import machine
+from bench._report import machine, replace_section
 from bench.heldout import HELDOUT_FRACTION, SPLIT_SEED, heldout_split
 from engine.fileio import atomic_write_text
 from engine.generate._decode import decode_tensors
@@ -318,14 +317,7 @@ def _write_modi_section(results: Path, report_path: Path) -> int:
     section += (
         f"Section rewritten from `{shown(report_path, 'MODI')}` by `python bench/compare.py --modi-only`.\n\n"
     )
-    text = results.read_text()
-    found = re.search(r"^## Unconditional: MoDi\n.*?(?=^## )", text, re.MULTILINE | re.DOTALL)
-    if found:
-        text = text[: found.start()] + section + text[found.end() :]
-    else:
-        at = text.index("## How it was made")
-        text = text[:at] + section + text[at:]
-    atomic_write_text(results, text)
+    replace_section(results, "## Unconditional: MoDi", section, before="## How it was made")
     print(f"wrote the MoDi section of {results}")
     return 0
 

@@ -163,7 +163,7 @@ class DvganGenerator(FolderGenerator):
         while done < total - first or not pieces:
             step = min(CHUNK, total - first - done)
             z = noise[:, first + done : first + done + step]
-            out, state = net.net(text, z0, z, prefix=last, state=state)
+            out, state = net.rnn(text, z0, z, prefix=last, state=state)
             pieces.append(out if not pieces else out[:, 1:])
             last = out[:, -1:]
             done += step

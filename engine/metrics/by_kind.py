@@ -19,10 +19,11 @@ def check_evaluable(
     """ConfigError/DataError (one line) unless the clips and classifier fit the model (before any work)."""
     from engine.metrics.evaluate import check_compatible
 
-    if generator.kind == "modi":
-        from engine.metrics.modi_eval import evaluable_spec
+    if generator.kind in ("modi", "dvgan"):
+        from engine.metrics import dvgan_eval, modi_eval
 
-        check_compatible(evaluable_spec(generator, classifier), real_clips, classifier)
+        spec = (modi_eval if generator.kind == "modi" else dvgan_eval).evaluable_spec(generator, classifier)
+        check_compatible(spec, real_clips, classifier)
     else:
         check_compatible(generator, real_clips, classifier)
 
@@ -64,4 +65,12 @@ def evaluate_generator(
         from engine.metrics.modi_eval import evaluate_modi
 
         return evaluate_modi(generator, real_clips, classifier, **options)
+    if generator.kind == "dvgan":
+        if strategy is not None:
+            raise ConfigError(
+                f"{generator.path}: a dvgan model is evaluated on N(0, I) codes; drop --strategy"
+            )
+        from engine.metrics.dvgan_eval import evaluate_dvgan
+
+        return evaluate_dvgan(generator, real_clips, classifier, **options)
     raise ConfigError(f"{generator.path}: no evaluation for {generator.kind} models")

@@ -30,6 +30,8 @@ from engine.errors import ConfigError
 from engine.model.config_base import ModelConfig
 
 GENERATORS = ("rnn", "cnn")
+#: How far past the training frames' range (a share of it) a generated feature may go.
+RANGE_MARGIN = 0.1
 DVGAN_TERMS = ("critic", "wasserstein", "gp", "generator", "total")
 
 
@@ -159,16 +161,22 @@ class RnnGenerator(nn.Module):
         text: Tensor,
         z0: Tensor,
         z: Tensor,
+        bounds: tuple[Tensor, Tensor, Tensor],
         prefix: Tensor | None = None,
         state: tuple[Tensor, Tensor] | None = None,
     ) -> tuple[Tensor, tuple[Tensor, Tensor]]:
         """Frames (B, P + S, F): the ``prefix`` (B, P, F; or the initial frame of ``z0`` (B, noise)) and
         one generated frame per step of ``z`` (B, S, noise); and the LSTM state after them.
 
+        ``bounds`` are (keep, low, high) (F,): generated frames are multiplied by ``keep``, which holds
+        features constant in the data at zero, and clamped to [low, high], the training frames' range,
+        so that no feature can drift away over thousands of frames.
+
         ``state`` continues an earlier call whose last frame is ``prefix``'s last (then only that
         frame is given)."""
+        keep, low, high = bounds
         if prefix is None:
-            prefix = self.first(self.initial_plot(z0, text))[:, None]
+            prefix = torch.clamp(self.first(self.initial_plot(z0, text))[:, None] * keep, low, high)
         frames = [prefix]
         if prefix.shape[1] > 1:  # warm the LSTM up on the seed frames
             seed_plots = self.plot(z.new_zeros(len(z), prefix.shape[1] - 1, z.shape[2]), text[:, None])
@@ -177,7 +185,7 @@ class RnnGenerator(nn.Module):
         last = prefix[:, -1:]
         for t in range(z.shape[1]):
             out, state = self.lstm(torch.cat([self.previous(last), plots[:, t : t + 1]], 2), state)
-            last = last + self.diff(out)
+            last = torch.clamp(last + self.diff(out) * keep, low, high)
             frames.append(last)
         return torch.cat(frames, 1), state
 
@@ -218,13 +226,31 @@ class DvganNetwork(nn.Module):
             self.net = RnnGenerator(config) if config.generator == "rnn" else CnnGenerator(config)
         self.register_buffer("mean", torch.zeros(config.n_features))
         self.register_buffer("std", torch.ones(config.n_features))
+        self.register_buffer("keep", torch.ones(config.n_features))
+        self.register_buffer("low", torch.full((config.n_features,), -10.0))
+        self.register_buffer("high", torch.full((config.n_features,), 10.0))
 
     @torch.no_grad()
     def set_statistics(self, frames: Tensor) -> None:
-        """Take the normalisation of unnormalised training frames (N, F) (constant features: std 1)."""
+        """Take the normalisation of unnormalised training frames (N, F); features constant in them (the
+        rotations of joints without children) are held at their value (``keep`` 0: a critic would tell
+        any generated wobble of them from the data at once); generated frames stay within the range of
+        the normalised training frames, widened by ``RANGE_MARGIN`` of it on either side."""
         std = frames.std(0)
+        varies = std > 1e-4
         self.mean.copy_(frames.mean(0))
-        self.std.copy_(torch.where(std > 1e-4, std, torch.ones_like(std)))
+        self.std.copy_(torch.where(varies, std, torch.ones_like(std)))
+        self.keep.copy_(varies.float())
+        x = self.normalise(frames)
+        low, high = x.min(0).values, x.max(0).values
+        margin = RANGE_MARGIN * (high - low)
+        self.low.copy_(low - margin)
+        self.high.copy_(high + margin)
+
+    @property
+    def bounds(self) -> tuple[Tensor, Tensor, Tensor]:
+        """(keep, low, high): what generated frames are held to (``set_statistics``)."""
+        return self.keep, self.low, self.high
 
     def normalise(self, raw: Tensor) -> Tensor:
         """Network features of unnormalised ones (..., F)."""
@@ -249,9 +275,20 @@ class DvganNetwork(nn.Module):
     def tape(self, text: Tensor, z0: Tensor, noise: list[Tensor]) -> Tensor:
         """Network frames (B, tape, F) of phrase representations (B, hidden), top codes and finer noise."""
         if self.config.generator == "rnn":
-            frames, _ = self.net(text, z0, noise[0][:, : self.config.tape - 1])
+            frames, _ = self.net(text, z0, noise[0][:, : self.config.tape - 1], self.bounds)
             return frames
-        return self.net(text, z0, noise)
+        return torch.clamp(self.net(text, z0, noise) * self.keep, self.low, self.high)
+
+    def rnn(
+        self,
+        text: Tensor,
+        z0: Tensor,
+        z: Tensor,
+        prefix: Tensor | None = None,
+        state: tuple[Tensor, Tensor] | None = None,
+    ) -> tuple[Tensor, tuple[Tensor, Tensor]]:
+        """The RNN generator's frames and state (``RnnGenerator.forward``) with the constant features held."""
+        return self.net(text, z0, z, self.bounds, prefix=prefix, state=state)
 
 
 class DenseCritic(nn.Module):

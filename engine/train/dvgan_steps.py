@@ -140,7 +140,7 @@ class DvganSteps:
         z0 = torch.randn(n, config.noise_dim, generator=generator, device=text.device)
         if prefix is not None:
             z = g.noise(n, config.window - prefix.shape[1], generator)[0]
-            frames, _ = g.net(text, z0, z, prefix=prefix)
+            frames, _ = g.rnn(text, z0, z, prefix=prefix)
             return frames
         tape = g.tape(text, z0, g.noise(n, config.tape - 1, generator))
         return final_cut(tape, config.window, generator) if config.final_cut else tape[:, : config.window]

@@ -15,13 +15,16 @@ from engine.errors import ConfigError
 from engine.generators import SampleRequest, open_generator
 from engine.generators import dvgan as dvgan_kind
 from engine.generators.dvgan import DvganGenerator
+from engine.metrics.by_kind import evaluate_generator
+from engine.metrics.dvgan_eval import HORIZONS_MS, completion_errors, long_sequences
 from engine.metrics.physics import bone_length_cv
 from engine.model.dvgan import LanguageModel, final_cut, gradient_penalty, phrase_words, shifted
 from engine.model.dvgan_features import feature_joints, motion_features, solve_pose, typical_skeleton
 from engine.motion.contact import foot_joints
 from engine.motion.formats import read_motion, write_motion
+from engine.motion.motion import Motion
 from engine.motion.skeleton import Skeleton
-from tests.fixtures.procedural import procedural_skeleton
+from tests.fixtures.procedural import PROCEDURAL_ACTIONS, procedural_skeleton
 
 pytestmark = pytest.mark.usefixtures("torch_single_thread")
 
@@ -202,3 +205,52 @@ def test_models_without_extend_refuse_long_samples(tiny_model_dir: Path, tmp_pat
     assert code != 0
     assert "cannot make 500-frame motions" in capsys.readouterr().err
     assert not (tmp_path / "x.npz").exists()
+
+
+@pytest.fixture(scope="module")
+def classifier(tmp_path_factory, procedural_clips):
+    from engine.metrics.classifier import train_classifier
+
+    out = tmp_path_factory.mktemp("dvgan_clf")
+    return train_classifier(
+        procedural_clips, PROCEDURAL_ACTIONS, out, epochs=2, batch_size=16, seed=0, window=12
+    )
+
+
+def test_zero_velocity_error_is_the_distance_moved_over_the_horizon(dvgan: DvganGenerator) -> None:
+    skeleton = dvgan.skeleton
+    t = np.arange(60) / dvgan.fps
+    pose = np.zeros((skeleton.n_joints, 3))  # the rest pose, carried at 1.5 m/s along +z
+    for j, p in enumerate(skeleton.parents):
+        pose[j] = skeleton.offsets[j] + (pose[p] if p >= 0 else 0.0)
+    joints = pose[None] + np.stack([np.zeros_like(t), np.zeros_like(t), 1.5 * t], 1)[:, None]
+    clip = Motion(joints.astype(np.float32), dvgan.fps, skeleton, action="walk")
+    report = completion_errors(dvgan, [clip], prefix_frames=10, n_futures=2)
+    zero = report["walk"]["zero_velocity"]
+    for ms in HORIZONS_MS:
+        frames = max(1, round(ms / 1000 * dvgan.fps))
+        assert zero[str(ms)] == pytest.approx(1.5 * frames / dvgan.fps, rel=1e-4)
+    assert report["walk"]["n_clips"] == 1 and all(v >= 0 for v in report["walk"]["model"].values())
+
+
+def test_evaluation_reports_windows_and_long_sequences(
+    dvgan: DvganGenerator, procedural_clips, classifier
+) -> None:
+    result = evaluate_generator(dvgan, procedural_clips, classifier, repeats=1, n_per_action=4)
+    assert result["meta"]["arch"] == "dvgan" and result["meta"]["window"] == 12
+    assert 0.0 <= result["generated"]["accuracy"]["mean"] <= 1.0
+    assert result["generated"]["fid"]["mean"] >= 0.0
+    assert set(result["per_action"]) == set(PROCEDURAL_ACTIONS)
+    long = long_sequences(dvgan, procedural_clips, classifier, frames=120)
+    for row in long.values():
+        assert 0.0 <= row["accuracy"] <= 1.0 and 0.0 <= row["windows_in_real_height_range"] <= 1.0
+        assert row["bone_length_cv_whole"] < 1e-4  # ten windows, one skeleton
+        assert row["root_height_min_m"] <= row["root_height_max_m"]
+
+
+def test_long_rollouts_stay_within_the_training_range(dvgan: DvganGenerator, procedural_clips) -> None:
+    [sample] = dvgan.sample(SampleRequest("jump", 1, 4), frames=2000)
+    height = sample.motion.joints[:, dvgan.skeleton.root, 1]
+    real = np.concatenate([c.joints[:, c.skeleton.root, 1] for c in procedural_clips])
+    span = real.max() - real.min()
+    assert real.min() - 0.2 * span <= height.min() and height.max() <= real.max() + 0.2 * span
