@@ -17,6 +17,16 @@ TOOLS: dict[str, str] = {
     "export_selection_action": "decode",
     "trajectory": "end",
     "invert_action": "invert",
+    "complete_action": "complete",
+    "continue_action": "extend",
+    "keep_going_action": "extend",
+}
+#: what an enabled tool does, as its tooltip (tools not named here have none)
+TIPS: dict[str, str] = {
+    "complete_action": "Ask the model for a few futures of the first motion shown, from the timeline's "
+    "frame on, and play them side by side",
+    "continue_action": "Extend the motions shown by the model, playing on from the current frame",
+    "keep_going_action": "Extend the motions shown whenever playback nears their end",
 }
 #: latent-tools panel box -> the capability it needs
 PANEL_TOOLS: dict[str, str] = {
@@ -51,5 +61,5 @@ def gate_tools(window: MainWindow, generator: Generator) -> dict[str, str]:
         tool.setEnabled(ok)
         if not ok:
             off[name] = str(refusal(generator, capability))
-        tool.setToolTip(off.get(name, ""))
+        tool.setToolTip(off.get(name, TIPS.get(name, "")))
     return off

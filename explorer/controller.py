@@ -3,7 +3,8 @@ widget signals and state events to the parts that act on them.
 
 The parts, one concern each: ``MapPresenter`` (the map), ``Gestures`` (clicks, drags, lasso, selection),
 ``Generation`` (samples, variations, local mode, end location, paths), ``LatentTools`` (truncation,
-style mixing, crowds, inversion), ``Editing`` (edit sliders) and ``Playback`` (the only writer
+style mixing, crowds, inversion), ``Editing`` (edit sliders), ``Continuation`` (futures of a prefix,
+longer motions) and ``Playback`` (the only writer
 to the 3-D view, timeline and trajectory canvas); exports, search and clip encoding have theirs. Torch,
 scikit-learn and scipy are imported where they are used: the window and the map's preview come up before
 the model is loaded, and the model-loading task brings them in off the GUI thread.
@@ -56,6 +57,7 @@ class Controller(QObject):
         self._seeds = np.random.SeedSequence(seed)
         self.projections: dict[str, Projection] = {}
         self.real_clips: dict[str, Motion] = {}  # the loaded dataset's clips by source name
+        from explorer.continuing import Continuation
         from explorer.editing import Editing
         from explorer.encoding import ClipEncoder
         from explorer.exporting import Exporter
@@ -75,6 +77,7 @@ class Controller(QObject):
         self.encoder = ClipEncoder(self)
         self.latent = LatentTools(self)
         self.editing = Editing(self)
+        self.continuation = Continuation(self)
         self.state.events.embedding.connect(lambda _e: self.encoder.show())
 
     def _connect(self) -> None:

@@ -53,10 +53,13 @@ class ClipEncoder(QObject):
             self.encode_files(paths)
 
     def dropped(self, paths: list[str]) -> None:
-        """Files dropped on the map: inverted where the loaded kind inverts by optimisation, else encoded."""
+        """Files dropped on the map: inverted where the loaded kind inverts by optimisation, else encoded;
+        played as recorded by a kind that does neither but completes or extends motions."""
         if self.c.can("invert"):
             panel = self.c.window.latent_panel
             self.c.latent.invert_files(paths, panel.space_combo.currentText(), panel.steps_spin.value())
+        elif not self.c.can("encode") and (self.c.can("complete") or self.c.can("extend")):
+            self.c.continuation.play_files(paths)
         else:
             self.encode_files(paths)
 

@@ -93,6 +93,8 @@ class MainWindow(QMainWindow):
 
         build_toolbar(self)
         build_menus(self)
+        for action in (self.complete_action, self.continue_action, self.keep_going_action):
+            self.timeline.add_tool_button(action)
         self._build_status_bar()
         self._default_state = self.saveState(_LAYOUT_VERSION)
         self.restore_layout()

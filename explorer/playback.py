@@ -37,6 +37,7 @@ class Playback:
         self.live_timer.timeout.connect(self.flush_live)
         self.live_marker: np.ndarray | None = None
         self.live_details = False
+        self.keep_frame = False  # the next shown motions play on from the current frame (a continuation)
 
     def decoded(self, request: int, items: tuple[Decoded, ...]) -> None:
         self.shown_request = max(self.shown_request, request)
@@ -44,8 +45,10 @@ class Playback:
 
     def show_motions(self, shown: tuple[Decoded, ...]) -> None:
         """Put ``shown`` in the viewport: the poses and end marker at once; during a drag, the rest
-        (root path, ghosts, trajectory canvas, timeline, status) at most every ``DETAILS_INTERVAL_MS``."""
+        (root path, ghosts, trajectory canvas, timeline, status) at most every ``DETAILS_INTERVAL_MS``;
+        from frame 0, unless ``keep_frame`` was set (a continuation plays on from the current frame)."""
         w = self.c.window
+        keep, self.keep_frame = self.keep_frame, False
         if not shown:
             return
         loaded = self.c.generator
@@ -68,7 +71,7 @@ class Playback:
             self.schedule_live()
         else:
             self.live_details = False
-            self.show_details(shown, restart=True)
+            self.show_details(shown, restart=not keep)
             if shown[0].code is not None:  # the Action box and the mode panel follow what plays
                 self.c.state.focus_action = int(shown[0].action)
         self.c.shownChanged.emit()
@@ -145,15 +148,15 @@ class Playback:
 
 def _skeleton_colors(shown: Sequence[Decoded], n: int, n_actions: int) -> np.ndarray:
     """(n, 3) uint8 skeleton colours: each motion's action colour (as on the map), in lighter to darker
-    shades when several share an action; real clips are light grey."""
+    shades when several share an action (completions too); real clips are light grey."""
     from widgets._colors import palette_rgb, shades
 
     palette = palette_rgb(max(n_actions, 1))
     rows = np.zeros((len(shown), 3), dtype=np.uint8)
     actions = np.array([d.action for d in shown])
     for action in np.unique(actions):
-        same = [k for k, d in enumerate(shown) if d.action == action and d.code is not None]
+        same = [k for k, d in enumerate(shown) if d.action == action and not d.real]
         if same:
             rows[same] = shades(palette[int(action) % len(palette)], len(same))
-    rows[[k for k, d in enumerate(shown) if d.code is None]] = (205, 205, 205)
+    rows[[k for k, d in enumerate(shown) if d.real]] = (205, 205, 205)
     return rows[:n]

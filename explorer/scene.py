@@ -48,7 +48,7 @@ def end_in_view(item: Decoded, root_height: float) -> np.ndarray | None:
 def short_label(item: Decoded, action_names: Sequence[str]) -> str:
     """A few words over a skeleton: its action and what it is (real clip, step, sample …)."""
     name = action_names[item.action] if 0 <= item.action < len(action_names) else item.motion.action
-    if item.code is None:
+    if item.real:
         return f"{name} (real)"
     words = item.label.split(" · ")[0].split()
     steps = [w for w in words if "/" in w and not w.endswith((".bvh", ".npz"))]

@@ -26,7 +26,8 @@ class Decoded:
 
     Parameters
     ----------
-    motion : the decoded (or real) motion.
+    motion : the decoded (or real, or completed) motion; a completion's ``meta["prefix_frames"]`` says how
+        many of its first frames came from the motion it continues.
     label : short text for the status bar and file names.
     code : (D,) latent code, or None for a real clip.
     action : action index.
@@ -46,6 +47,11 @@ class Decoded:
     seed: int | None = None
     bank_index: int | None = None
     note: str = ""
+
+    @property
+    def real(self) -> bool:
+        """True for a clip shown as recorded: no code, and no frames a model added after it."""
+        return self.code is None and "prefix_frames" not in self.motion.meta
 
     def metadata(self, model_path: str) -> dict[str, Any]:
         """JSON-ready provenance: model, code, action, mode, end location, seed."""

@@ -69,7 +69,7 @@ def build_toolbar(window: MainWindow) -> None:
 
 
 def build_menus(window: MainWindow) -> None:
-    """The File, Selection and View menus."""
+    """The File, Selection, Motion and View menus."""
     file_menu = window.menuBar().addMenu("&File")
     file_menu.setToolTipsVisible(True)
     window.open_model_action = file_menu.addAction("Open &model folder…")
@@ -79,6 +79,7 @@ def build_menus(window: MainWindow) -> None:
     window.open_data_action = file_menu.addAction("Open &dataset folder…")
     window.encode_action = file_menu.addAction("E&ncode clips… (or drop files on the map)")
     window.invert_action = file_menu.addAction("&Invert clips… (by optimisation)")
+    window.play_file_action = file_menu.addAction("&Play motion file as recorded…")
     file_menu.addSeparator()
     window.export_motion_action = file_menu.addAction("&Export shown motion(s) (BVH / NPZ)…")
     window.export_motion_action.setShortcut(QKeySequence("Ctrl+E"))
@@ -102,6 +103,15 @@ def build_menus(window: MainWindow) -> None:
     sel.addSeparator()
     window.clear_selection_action = sel.addAction("&Clear selection and samples")
     window.clear_selection_action.setShortcut(QKeySequence(Qt.Key_Escape))
+
+    motion = window.menuBar().addMenu("&Motion")
+    motion.setToolTipsVisible(True)
+    window.complete_action = motion.addAction("Complete from &here")
+    window.complete_action.setShortcut(QKeySequence("Ctrl+K"))
+    window.continue_action = motion.addAction("C&ontinue")
+    window.continue_action.setShortcut(QKeySequence("Ctrl+Right"))
+    window.keep_going_action = motion.addAction("&Keep going while it plays")
+    window.keep_going_action.setCheckable(True)
 
     view = window.menuBar().addMenu("&View")
     for dock in window.docks():

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from PySide6.QtCore import Qt, QTimer, Signal
-from PySide6.QtGui import QCloseEvent, QKeySequence, QShortcut
+from PySide6.QtGui import QAction, QCloseEvent, QKeySequence, QShortcut
 from PySide6.QtWidgets import (
     QCheckBox,
     QComboBox,
@@ -56,10 +56,11 @@ class Timeline(QWidget):
         self.loop_box = QCheckBox("Loop")
         self.loop_box.setChecked(True)
 
-        layout = QHBoxLayout(self)
-        layout.setContentsMargins(4, 2, 4, 2)
+        self._layout = QHBoxLayout(self)
+        self._layout.setContentsMargins(4, 2, 4, 2)
         for widget in (self.play_button, self.slider, self.counter, self.speed_box, self.loop_box):
-            layout.addWidget(widget, 1 if widget is self.slider else 0)
+            self._layout.addWidget(widget, 1 if widget is self.slider else 0)
+        self.tool_buttons: list[QToolButton] = []
 
         context = Qt.ShortcutContext.WidgetWithChildrenShortcut
         for key, action in (
@@ -80,6 +81,16 @@ class Timeline(QWidget):
         self.slider.setRange(0, self._length - 1)
         self._update_interval()
         self._update_counter()
+
+    def add_tool_button(self, action: QAction) -> QToolButton:
+        """A button after the transport controls that triggers ``action`` (and follows its text, tooltip and
+        enabled state)."""
+        button = QToolButton()
+        button.setDefaultAction(action)
+        button.setToolButtonStyle(Qt.ToolButtonStyle.ToolButtonTextOnly)
+        self._layout.addWidget(button)
+        self.tool_buttons.append(button)
+        return button
 
     def frame(self) -> int:
         """The current frame index."""
