@@ -30,10 +30,13 @@ if __package__ in (None, ""):
 
 from bench._report import machine, replace_section
 from bench.heldout import HELDOUT_FRACTION, SPLIT_SEED, heldout_split
+from bench.train_dvgan import results_section
 from engine.fileio import atomic_write_text
 from engine.generate._decode import decode_tensors
+from engine.generators import Generator, SampleRequest, open_generator
 from engine.generators.a2m import LoadedA2m, load_a2m
 from engine.metrics.a2m_eval import evaluate_a2m
+from engine.metrics.by_kind import evaluate_generator
 from engine.metrics.classifier import Classifier, load_classifier, train_classifier
 from engine.metrics.evaluate import evaluate
 from engine.model.a2m import A2mConfig
@@ -52,6 +55,7 @@ REPO = Path(__file__).resolve().parents[1]
 RESULTS = REPO / "docs" / "RESULTS.md"
 DEFAULT_MODEL = REPO / "resources" / "models" / "bandai2-odmo"
 MODI_MODEL = REPO / "resources" / "models" / "bandai2-modi"
+DVGAN_MODEL = REPO / "resources" / "models" / "bandai2-dvgan"
 CLASSIFIERS = (REPO / "runs" / "bandai2-odmo" / "classifier", DEFAULT_MODEL / "classifier")
 SPEED_BATCH = 64
 WINDOW, FPS = 60, 20.0  # the OdmoConfig / A2mConfig defaults every model here uses
@@ -168,6 +172,11 @@ def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
     p.add_argument(
         "--previous-label", action="append", default=[], help="what each odmo_previous row is called"
     )
+    p.add_argument(
+        "--model", type=Path, action="append", default=[],
+        help="a model folder of any kind evaluated as it is, one row each (repeatable)",
+    )  # fmt: skip
+    p.add_argument("--model-label", action="append", default=[], help="what each --model row is called")
     args = p.parse_args(argv)
     if args.modi_only:
         return args
@@ -181,6 +190,8 @@ def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
         p.error("the odmo_previous row needs --previous DIR")
     if len(args.previous_label) > len(args.previous):
         p.error("more --previous-label than --previous folders")
+    if len(args.model_label) != len(args.model):
+        p.error("give one --model-label per --model folder")
     return args
 
 
@@ -241,6 +252,7 @@ def results_markdown(
     info: dict[str, str],
     labels: dict[str, str] | None = None,
     unconditional: dict[str, Any] | None = None,
+    dvgan: dict[str, Any] | None = None,
 ) -> str:
     """RESULTS.md: the table (real row, then one row per entry), the unconditional model's table (its
     evaluation report ``unconditional``, when given) and the bullet list ``info``.
@@ -274,6 +286,8 @@ def results_markdown(
         lines += per_action_markdown(entry["per_action"], names[entry["row"]])
     if unconditional is not None:
         lines += unconditional_markdown(unconditional)
+    if dvgan is not None:
+        lines += results_section(dvgan)
     lines += ["## How it was made", ""]
     lines += [f"- **{key}**: {value}" for key, value in info.items()]
     return "\n".join(lines) + "\n"
@@ -416,10 +430,21 @@ def a2m_decoder(loaded: LoadedA2m) -> Callable[[], None]:
     return decode
 
 
+def sample_decoder(generator: Generator) -> Callable[[], None]:
+    """One ``sample`` of a batch of 64 of the generator's first action (seed 0), as the CLI makes it."""
+    request = SampleRequest(generator.label_names[0], SPEED_BATCH, 0)
+
+    def decode() -> None:
+        generator.sample(request)
+
+    return decode
+
+
 #: Path options and how a value outside the repository is shown.
 _PATH_OPTIONS = {
     "--data": "DATA",
     "--previous": "PREVIOUS",
+    "--model": "MODEL",
     "--classifier": "CLASSIFIER",
     "--runs": "RUNS",
     "--results": "RESULTS",
@@ -586,6 +611,23 @@ def main(argv: Sequence[str] | None = None) -> int:
         _check_same_real(real, report["real"], key)
         entries.append({"row": key, "generated": report["generated"], "per_action": report["per_action"]})
         decoders[key] = a2m_decoder(a2m)
+    for i, folder in enumerate(args.model):
+        key = f"model_{i + 1}"
+        generator = open_generator(folder)
+        labels[key] = args.model_label[i]
+        notes[key] = f"evaluated as it is ({shown(folder, 'MODEL')}, a {generator.kind} model)"
+        saved = args.runs / f"eval_{key}.json"
+        report, reused = _saved_or_run(
+            saved,
+            args.reuse and _fresh_eval(saved, folder, classifier, evaluation, None),
+            lambda generator=generator: evaluate_generator(generator, test_clips, classifier, **evaluation),
+        )
+        if reused:
+            notes[key] += _reused_note(saved)
+        real = real or report["real"]
+        _check_same_real(real, report["real"], key)
+        entries.append({"row": key, "generated": report["generated"], "per_action": report["per_action"]})
+        decoders[key] = sample_decoder(generator)
     measured = speeds(decoders)
     for entry in entries:
         entry["speed"] = measured[entry["row"]]
@@ -630,7 +672,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         "z_1..z_T of the real window, decoded free-running (A2M: a 30-d code per frame; ODMO: one 20-d code)",
         "Decode speed": f"motions/s at batch {SPEED_BATCH}, median of 20 rounds that time every row in "
         f"turn, CPU, {torch.get_num_threads()} torch thread(s); ODMO: one decode of bank codes; A2M: prior "
-        "sampling",
+        "sampling; --model rows: `sample` of their first action, as the CLI makes it",
         "Machine": machine(),
         "Date": dt.datetime.now(dt.UTC).strftime("%Y-%m-%d %H:%M UTC"),
         "Wall time": f"{(time.time() - started) / 60:.1f} min",
@@ -644,7 +686,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     }
     modi_report = args.modi / "eval.json"
     unconditional = json.loads(modi_report.read_text()) if modi_report.is_file() else None
-    atomic_write_text(args.results, results_markdown(real, entries, info, labels, unconditional))
+    dvgan_report = DVGAN_MODEL / "eval.json"
+    dvgan = json.loads(dvgan_report.read_text()) if dvgan_report.is_file() else None
+    atomic_write_text(args.results, results_markdown(real, entries, info, labels, unconditional, dvgan))
     print(f"wrote {args.results}")
     return 0
 
