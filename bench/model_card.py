@@ -49,6 +49,17 @@ SKATE_FLOOR = 0.02  # m/s: the planted-foot target for actions that stand still
 REPO = Path(__file__).resolve().parents[1]
 
 
+def licence_lines() -> list[str]:
+    """The card section on the data's licence, for a model and bank in a folder with the dataset's LICENSE."""
+    return [
+        "## Data and licence",
+        "",
+        "Bandai Namco Research Inc., *Bandai-Namco-Research-Motiondataset* (dataset 2), 2022, "
+        "**CC BY-NC 4.0** (LICENSE, copied from the dataset). The model and its latent bank are derived "
+        "from this data and inherit the **non-commercial** term; keep the attribution wherever they ship.",
+    ]
+
+
 def repo_path(path: Path) -> str:
     """``path`` relative to the repository when inside it, else its name (no machine paths on a card)."""
     try:
@@ -64,9 +75,9 @@ def cell(summary: dict[str, Any], key: str) -> str:
     return f"{summary[key]['mean']:.4g} ± {summary[key]['ci95']:.2g}"
 
 
-def metric_table(report: dict[str, Any]) -> list[str]:
-    """Markdown rows: each metric for real held-out motion and for generated motion."""
-    rows = ["| metric | real (held-out) | ODMO (generated) |", "|---|---|---|"]
+def metric_table(report: dict[str, Any], model: str = "ODMO") -> list[str]:
+    """Markdown rows: each metric for real held-out motion and for ``model``'s generated motion."""
+    rows = [f"| metric | real (held-out) | {model} (generated) |", "|---|---|---|"]
     keys = dict(METRICS)
     extra = sorted(set(report["generated"]) - set(keys))
     for key, label in (*METRICS, *((k, k) for k in extra)):

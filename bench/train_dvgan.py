@@ -31,7 +31,7 @@ if __package__ in (None, ""):
 
 from bench._report import replace_section
 from bench.heldout import HELDOUT_FRACTION, SPLIT_SEED, heldout_split
-from bench.model_card import METRICS, cell, per_action_table, physics_targets, repo_path
+from bench.model_card import licence_lines, metric_table, per_action_table, physics_targets, repo_path
 from bench.train_default import card_argv
 from engine.errors import ConfigError
 from engine.fileio import atomic_write_text
@@ -245,15 +245,6 @@ def phrase_lines(report: dict[str, Any]) -> list[str]:
     return lines
 
 
-def metric_rows(report: dict[str, Any]) -> list[str]:
-    """The metric table, real against generated."""
-    rows = ["| metric | real (held-out) | DVGAN (generated) |", "|---|---|---|"]
-    for key, label in METRICS:
-        if key in report["real"] or key in report["generated"]:
-            rows.append(f"| {label} | {cell(report['real'], key)} | {cell(report['generated'], key)} |")
-    return rows
-
-
 def model_card(report: dict[str, Any], generator: DvganGenerator, argv: list[str], n_held: int) -> str:
     """MODEL_CARD.md from the evaluation report and the model's provenance; never typed by hand."""
     config: DvganConfig = generator.loaded.config
@@ -274,11 +265,7 @@ def model_card(report: dict[str, Any], generator: DvganGenerator, argv: list[str
         "and height, and foot contacts, decoded by forward kinematics on a fixed skeleton; planted feet are",
         "pinned at decode time. It completes a prefix and continues a motion for any length.",
         "",
-        "## Data and licence",
-        "",
-        "Bandai Namco Research Inc., *Bandai-Namco-Research-Motiondataset* (dataset 2), 2022, "
-        "**CC BY-NC 4.0** (LICENSE, copied from the dataset). The model and its latent bank are derived "
-        "from this data and inherit the **non-commercial** term; keep the attribution wherever they ship.",
+        *licence_lines(),
         "",
         "## Quality targets (held-out clips)",
         "",
@@ -292,7 +279,7 @@ def model_card(report: dict[str, Any], generator: DvganGenerator, argv: list[str
         f"windows, with the classifier of bandai2-odmo (accuracy {meta['classifier_test_accuracy']:.3f} on "
         "its test windows). Mean ± 95 % interval over the repeats.",
         "",
-        *metric_rows(report),
+        *metric_table(report, "DVGAN"),
         "",
         *per_action_table(report),
         "",
@@ -350,7 +337,7 @@ def results_section(report: dict[str, Any]) -> list[str]:
         f"The bundled `{meta['model']}`, from its evaluation report (`eval.json`, written by "
         "`bench/train_dvgan.py`) on the held-out split above, with the same classifier. Generated windows:",
         "",
-        *metric_rows(report),
+        *metric_table(report, "DVGAN"),
         "",
         "Completion against zero velocity (mean joint error in cm, model / zero velocity):",
         "",

@@ -29,7 +29,7 @@ if __package__ in (None, ""):
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from bench.heldout import HELDOUT_FRACTION, SPLIT_SEED, heldout_split
-from bench.model_card import METRICS, cell, per_action_table, physics_targets, repo_path
+from bench.model_card import METRICS, cell, licence_lines, per_action_table, physics_targets, repo_path
 from bench.train_default import card_argv
 from engine.fileio import atomic_write_text
 from engine.generators import open_generator
@@ -228,11 +228,7 @@ def model_card(
         "R1 and the foot-contact losses. Unconditional: its bank labels codes by action only to colour",
         "the map (inverted clips by their own label, prior samples by the classifier).",
         "",
-        "## Data and licence",
-        "",
-        "Bandai Namco Research Inc., *Bandai-Namco-Research-Motiondataset* (dataset 2), 2022, "
-        "**CC BY-NC 4.0** (LICENSE, copied from the dataset). The model and its latent bank are derived "
-        "from this data and inherit the **non-commercial** term; keep the attribution wherever they ship.",
+        *licence_lines(),
         "",
         "## Quality targets (held-out clips)",
         "",

@@ -321,6 +321,22 @@ def read_model_folder(
     return FolderContents(meta, config, skeleton, names, model, folder)
 
 
+def read_kind_folder(
+    model_dir: str | Path,
+    arch: str,
+    config_type: type[ModelConfig],
+    build: Callable[[Any, Skeleton], torch.nn.Module],
+    device: str = "cpu",
+    with_bank: bool = True,
+) -> dict[str, Any]:
+    """The fields of a kind's loaded-folder record (``LoadedFolder``): the folder read strictly by
+    :func:`read_model_folder` and its latent bank, when ``with_bank`` and the folder has one."""
+    found = read_model_folder(model_dir, arch, config_type, build, device)
+    with_bank = with_bank and (found.path / BANK_FILE).is_file()
+    bank = read_bank(found.path, found.meta) if with_bank else None
+    return found.loaded_fields() | {"bank": bank}
+
+
 def load_model(model_dir: str | Path, device: str = "cpu", with_bank: bool = True) -> LoadedModel:
     """Read an ODMO model folder strictly (see :func:`read_model_folder`), with its latent bank."""
     found = read_model_folder(model_dir, "odmo", OdmoConfig, lambda config, _: OdmoModel(config), device)

@@ -20,7 +20,7 @@ from engine.generate import Sample, interpolation_codes
 from engine.generators.base import CodeSpace, FolderGenerator, Generator, SampleRequest, refusal, require
 from engine.latent.bank import LatentBank
 from engine.model.a2m import A2mConfig, A2mModel
-from engine.modelio import BANK_FILE, LoadedFolder, read_bank, read_model_folder
+from engine.modelio import LoadedFolder, read_kind_folder
 from engine.motion.motion import Motion
 from engine.train.windows import prepare_clips, windows_at
 
@@ -39,10 +39,10 @@ class LoadedA2m(LoadedFolder):
 
 def load_a2m(model_dir: str | Path, device: str = "cpu", with_bank: bool = True) -> LoadedA2m:
     """Read an A2M folder strictly: bad, newer or non-A2M files raise ModelFormatError."""
-    found = read_model_folder(model_dir, ARCH, A2mConfig, lambda config, _: A2mModel(config), device)
-    with_bank = with_bank and (found.path / BANK_FILE).is_file()
-    bank = read_bank(found.path, found.meta) if with_bank else None
-    return LoadedA2m(**found.loaded_fields(), bank=bank)
+    fields = read_kind_folder(
+        model_dir, ARCH, A2mConfig, lambda config, _: A2mModel(config), device, with_bank
+    )
+    return LoadedA2m(**fields)
 
 
 def action_index(loaded: LoadedA2m, action: int | str) -> int:

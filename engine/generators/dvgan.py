@@ -23,7 +23,7 @@ from engine.generators.base import CodeSpace, FolderGenerator, Generator, Sample
 from engine.latent.bank import LatentBank
 from engine.model.dvgan import DvganConfig, DvganNetwork
 from engine.model.dvgan_features import feature_joints, motion_features
-from engine.modelio import BANK_FILE, LoadedFolder, read_bank, read_model_folder
+from engine.modelio import LoadedFolder, read_kind_folder
 from engine.motion.contact import foot_joints
 from engine.motion.ik import plant_feet
 from engine.motion.motion import Motion
@@ -49,10 +49,10 @@ class LoadedDvgan(LoadedFolder):
 
 def load_dvgan(model_dir: str | Path, device: str = "cpu", with_bank: bool = True) -> LoadedDvgan:
     """Read a DVGAN folder strictly: bad, newer or non-DVGAN files raise ModelFormatError."""
-    found = read_model_folder(model_dir, ARCH, DvganConfig, lambda config, _: DvganNetwork(config), device)
-    with_bank = with_bank and (found.path / BANK_FILE).is_file()
-    bank = read_bank(found.path, found.meta) if with_bank else None
-    return LoadedDvgan(**found.loaded_fields(), bank=bank)
+    fields = read_kind_folder(
+        model_dir, ARCH, DvganConfig, lambda config, _: DvganNetwork(config), device, with_bank
+    )
+    return LoadedDvgan(**fields)
 
 
 def _torch_seed(seed: int, index: int) -> torch.Generator:

@@ -30,7 +30,11 @@ from engine.generators.modi_latent import (
 )
 from engine.latent.bank import LatentBank
 from engine.model.modi import ModiConfig, ModiNetwork
-from engine.modelio import BANK_FILE, LoadedFolder, read_bank, read_model_folder, write_model_folder
+from engine.modelio import (
+    LoadedFolder,
+    read_kind_folder,
+    write_model_folder,
+)
 from engine.motion.contact import foot_joints
 from engine.motion.ik import plant_feet
 from engine.motion.motion import Motion
@@ -52,10 +56,7 @@ class LoadedModi(LoadedFolder):
 
 def load_modi(model_dir: str | Path, device: str = "cpu", with_bank: bool = True) -> LoadedModi:
     """Read a MoDi folder strictly: bad, newer or non-MoDi files raise ModelFormatError."""
-    found = read_model_folder(model_dir, ARCH, ModiConfig, ModiNetwork, device)
-    with_bank = with_bank and (found.path / BANK_FILE).is_file()
-    bank = read_bank(found.path, found.meta) if with_bank else None
-    return LoadedModi(**found.loaded_fields(), bank=bank)
+    return LoadedModi(**read_kind_folder(model_dir, ARCH, ModiConfig, ModiNetwork, device, with_bank))
 
 
 def save_modi(
