@@ -37,6 +37,8 @@ FOLDERS = {
     "bandai2-a2m": "bundled_a2m_dir",
     "modi": "tiny_modi_dir",
     "bandai2-modi": "bundled_modi_dir",
+    "dvgan": "tiny_dvgan_dir",
+    "bandai2-dvgan": "bundled_dvgan_dir",
 }
 BUNDLED_A2M = Path(__file__).resolve().parents[2] / "resources" / "models" / "bandai2-a2m"
 
@@ -53,6 +55,12 @@ def bundled_modi_dir() -> Path:
     return BUNDLED_A2M.parent / "bandai2-modi"
 
 
+@pytest.fixture(scope="session")
+def bundled_dvgan_dir() -> Path:
+    """The bundled DVGAN trained on Bandai-Namco-2."""
+    return BUNDLED_A2M.parent / "bandai2-dvgan"
+
+
 @pytest.fixture(params=sorted(FOLDERS))
 def folder(request: pytest.FixtureRequest) -> Path:
     """The folder of a tiny trained model of each kind, of the old A2M baseline (which only samples) and
@@ -66,7 +74,7 @@ def action_of(generator: Generator, k: int) -> str | None:
 
 
 def test_every_shipped_kind_is_registered() -> None:
-    assert kinds() == ["a2m", "modi", "odmo"]
+    assert kinds() == ["a2m", "dvgan", "modi", "odmo"]
 
 
 def test_open_picks_the_kind_from_model_json(folder: Path) -> None:
@@ -189,6 +197,6 @@ def test_unknown_kinds_are_refused_by_name(tiny_a2m_dir: Path, tmp_path: Path) -
     meta = json.loads((copy / "model.json").read_text())
     (copy / "model.json").write_text(json.dumps(meta | {"arch": "gan9"}))
     with pytest.raises(
-        ModelFormatError, match=r"model\.json: unknown model kind 'gan9'; this program opens a2m, modi, odmo"
+        ModelFormatError, match=r"model\.json: unknown model kind 'gan9'; this program opens a2m, dvgan, modi, odmo"
     ):
         open_generator(copy)
