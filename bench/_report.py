@@ -46,15 +46,15 @@ def format_section(section: str, rows: list[dict[str, Any]], command: str) -> st
     return "\n".join(lines) + "\n"
 
 
-def replace_section(path: Path, heading: str, body: str, before: str) -> None:
+def replace_section(path: Path, heading: str, body: str, before: str | tuple[str, ...]) -> None:
     """Replace the section headed ``heading`` (up to the next ``## ``) of ``path`` with ``body``, or add
-    it in front of the line ``before``; atomically."""
+    it in front of the first of the lines ``before`` the file has; atomically."""
     text = path.read_text(encoding="utf-8")
     found = re.search(rf"^{re.escape(heading)}\n.*?(?=^## )", text, re.MULTILINE | re.DOTALL)
     if found:
         text = text[: found.start()] + body + text[found.end() :]
     else:
-        at = text.index(before)
+        at = min(text.find(b) for b in ((before,) if isinstance(before, str) else before) if b in text)
         text = text[:at] + body + text[at:]
     atomic_write_text(path, text)
 

@@ -284,10 +284,10 @@ def results_markdown(
     lines.append("")
     for entry in per_action_entries(entries):
         lines += per_action_markdown(entry["per_action"], names[entry["row"]])
-    if unconditional is not None:
-        lines += unconditional_markdown(unconditional)
     if dvgan is not None:
         lines += results_section(dvgan)
+    if unconditional is not None:
+        lines += unconditional_markdown(unconditional)
     lines += ["## How it was made", ""]
     lines += [f"- **{key}**: {value}" for key, value in info.items()]
     return "\n".join(lines) + "\n"

@@ -129,7 +129,8 @@ def main() -> int:
     atomic_write_text(out / "eval.json", json.dumps(report | {"meta": meta}, indent=2))
     atomic_write_text(out / "MODEL_CARD.md", model_card(report, generator, sys.argv[1:], len(held)))
     if not args.no_results:
-        replace_section(RESULTS, SECTION, "\n".join(results_section(report)), before="## How it was made")
+        anchors = ("## Unconditional: MoDi", "## How it was made")
+        replace_section(RESULTS, SECTION, "\n".join(results_section(report)), before=anchors)
     print(f"wrote {out}")
     return 0
 

@@ -197,6 +197,7 @@ def test_unknown_kinds_are_refused_by_name(tiny_a2m_dir: Path, tmp_path: Path) -
     meta = json.loads((copy / "model.json").read_text())
     (copy / "model.json").write_text(json.dumps(meta | {"arch": "gan9"}))
     with pytest.raises(
-        ModelFormatError, match=r"model\.json: unknown model kind 'gan9'; this program opens a2m, dvgan, modi, odmo"
+        ModelFormatError,
+        match=r"model\.json: unknown model kind 'gan9'; this program opens a2m, dvgan, modi, odmo",
     ):
         open_generator(copy)
