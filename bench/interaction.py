@@ -8,8 +8,8 @@ Run under X (or ``xvfb-run -a -s "-screen 0 1920x1080x24"``)::
   result back on the GUI thread, state update, ``set_poses``), excluding the GPU draw; aim < 30 ms.
 - playback frame: one timeline step (poses of every skeleton set) plus a synchronous render.
 - map redraw: ``LatentMap.set_points`` of N random points plus a synchronous repaint.
-- cold start: process start to the first paint of the map with the model's points, and to the model
-  being loaded (decoding enabled), in fresh processes.
+- cold start: process start to the first paint of the map with the model's points, to the model being
+  loaded (decoding enabled) and to the 3-D view being created, in fresh processes.
 """
 
 from __future__ import annotations
@@ -149,23 +149,27 @@ def bench_map(app: QApplication, explorer, n_points: int, repeats: int, color_by
 
 def cold_start_child(model: Path, spawned: float) -> None:
     """Child process: open the explorer as ``odmo-explorer`` does; print seconds since ``spawned`` at
-    the first paint of the map with points on it, then at the model being loaded."""
+    the first paint of the map with points on it, at the model being loaded, and at the 3-D view
+    being created."""
     app = QApplication.instance() or QApplication(sys.argv[:1])
     explorer = create_explorer(model, None, QSettings("/dev/null", QSettings.Format.IniFormat))
     painted: list[float] = []
+    loaded: list[float] = []
+    viewport: list[float] = []
     explorer.window.mapPainted.connect(lambda: painted.append(time.time() - spawned))
+    explorer.controller.modelLoaded.connect(lambda _m: loaded.append(time.time() - spawned))
+    explorer.window.viewportCreated.connect(lambda: viewport.append(time.time() - spawned))
     explorer.window.show()
-    _wait(app, lambda: bool(painted), timeout=120)
-    _wait(app, lambda: explorer.controller.state.embedding is not None, timeout=120)
-    loaded = time.time() - spawned
-    print(f"{painted[0]:.3f} {loaded:.3f}")
+    _wait(app, lambda: bool(painted and loaded and viewport), timeout=120)
+    print(f"{painted[0]:.3f} {loaded[0]:.3f} {viewport[0]:.3f}")
     explorer.close()
     QTimer.singleShot(0, app.quit)
 
 
 def bench_cold_start(model: Path, repeats: int) -> list[dict]:
-    """Median ms from process start to first map paint and to the model loaded, ``repeats`` processes."""
-    paint, loaded = [], []
+    """Median ms from process start to first map paint, to the model loaded and to the 3-D view created,
+    over ``repeats`` processes."""
+    paint, loaded, viewport = [], [], []
     for _ in range(repeats):
         out = subprocess.run(
             [sys.executable, __file__, "--model", str(model), "--cold-start-child", str(time.time())],
@@ -173,12 +177,14 @@ def bench_cold_start(model: Path, repeats: int) -> list[dict]:
             capture_output=True,
             text=True,
         )
-        first, ready = (float(v) for v in out.stdout.strip().splitlines()[-1].split())
+        first, ready, shown = (float(v) for v in out.stdout.strip().splitlines()[-1].split())
         paint.append(first)
         loaded.append(ready)
+        viewport.append(shown)
     return [
         {"measure": "cold start → first map paint", "n": repeats, "median_ms": _median_ms(paint)},
         {"measure": "cold start → model loaded (decoding on)", "n": repeats, "median_ms": _median_ms(loaded)},
+        {"measure": "cold start → 3-D view created", "n": repeats, "median_ms": _median_ms(viewport)},
     ]
 
 
@@ -228,7 +234,10 @@ def main() -> int:
         from bench._report import record
 
         sizes = " ".join(str(n) for n in args.map_sizes)
-        command = f"xvfb-run -a python bench/interaction.py --model {args.model} --map-sizes {sizes}"
+        command = (
+            f"xvfb-run -a python bench/interaction.py --model {args.model} --map-sizes {sizes} "
+            f"--cold-starts {args.cold_starts}"
+        )
         record("Explorer interaction", rows, command)
     return 0
 

@@ -61,6 +61,19 @@ class Explorer:
     pending: list[Callable[[], None]] = field(default_factory=list)
     closed: bool = False
 
+    def load_viewport(self) -> None:
+        """Import VTK off the GUI thread, then create the 3-D view there (the window still open)."""
+
+        def job(progress: Callable[[str, float], None], _cancel: Callable[[], bool]) -> None:
+            progress("Loading the 3-D view", 0.5)
+            import widgets.viewport  # noqa: F401
+
+        def create(_result: None) -> None:
+            if not self.closed and self.window.isVisible():
+                _ = self.window.viewport
+
+        self.controller.run_task("Loading the 3-D view", job, create)
+
     @property
     def waiting(self) -> bool:
         """True until the work deferred to after the first paint has been started."""
@@ -98,10 +111,12 @@ def create_explorer(
 ) -> Explorer:
     """Build the window and controller, paint ``model``'s (or the bundled one's) map, then load it.
 
-    Start-up order, so that the map shows within a second or two: the window, the controller and the
-    map (the bank's stored projection, read with numpy) come first; torch, scikit-learn and the model
-    are loaded in a worker and the 3-D viewport (VTK) is created only after the map's first paint
-    (or ``START_FALLBACK_MS`` at the latest). Clicks decode once the model is loaded.
+    Start-up order, so that the map shows within a second and decoding starts within two: the window,
+    the controller and the map (the bank's stored projection, read with numpy) come first; after the
+    map's first paint (or ``START_FALLBACK_MS`` at the latest) torch and the model are loaded in a
+    worker, then VTK is imported in a worker and the 3-D viewport created. Imports hold Python's lock,
+    so the two run one after the other rather than slowing each other down, and the GUI thread stays
+    free for the map. A motion decoded before the viewport exists creates it at once.
     """
     from explorer.controller import Controller
     from explorer.main_window import MainWindow
@@ -119,14 +134,12 @@ def create_explorer(
             f"The bundled model ({DEFAULT_MODEL.name}) is not installed yet: open a model folder with "
             "File ▸ Open model folder… or start with --model DIR."
         )
+        explorer.pending.append(explorer.load_viewport)
     else:
         controller.loader.show_preview(target)
-        explorer.pending.append(lambda: controller.loader.open_model(target))
+        explorer.pending.append(lambda: controller.loader.open_model(target, then=explorer.load_viewport))
     if data is not None:
         explorer.pending.append(lambda: controller.loader.open_data(data))
-    explorer.pending.append(
-        lambda: QTimer.singleShot(0, window, lambda: window.isVisible() and window.viewport)
-    )
     window.mapPainted.connect(explorer.start_deferred)
     QTimer.singleShot(START_FALLBACK_MS, window, explorer.start_deferred)
     return explorer

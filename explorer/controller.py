@@ -130,6 +130,7 @@ class Controller(QObject):
         self.tasks.ended.connect(self._task_ended)
 
         ev.model.connect(self.loader.model_changed)
+        w.viewportCreated.connect(self.loader.rig_viewport)
         ev.projection.connect(self.map.projection_changed)
         ev.embedding.connect(self.map.redraw_map)
         ev.color_by.connect(self.map.color_by_changed)

@@ -4,8 +4,9 @@ background, File ▸ Open, recent and bundled models; what changes in the window
 from __future__ import annotations
 
 import logging
+from collections.abc import Callable
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from PySide6.QtWidgets import QFileDialog
@@ -66,8 +67,9 @@ class Loader:
         )
         return True
 
-    def open_model(self, path: str | Path) -> None:
-        """Load a model folder in the background; the current one stays until the new one is ready."""
+    def open_model(self, path: str | Path, then: Callable[[], None] | None = None) -> None:
+        """Load a model folder in the background; the current one stays until the new one is ready.
+        ``then()`` runs on the GUI thread after the model is shown or its failure reported."""
         path = Path(path)
         self.show_preview(path)
 
@@ -85,7 +87,11 @@ class Loader:
 
         title = f"Loading model {path.name}"
         self.load_error = ""
-        self._model_task = self.c.tasks.run(title, job, self._model_ready, self._model_failed)
+
+        def after(report: Callable[[Any], None]) -> Callable[[Any], None]:
+            return lambda result: (report(result), then and then())
+
+        self._model_task = self.c.tasks.run(title, job, after(self._model_ready), after(self._model_failed))
 
     def _model_failed(self, exc: BaseException) -> None:
         """The model could not be loaded: say why, keep what is shown, remember it (``load_error``)."""
@@ -168,7 +174,7 @@ class Loader:
         gate_tools(w, loaded)
         if set(PANEL_TOOLS.values()) & loaded.capabilities and "end" not in loaded.capabilities:
             w.latent_dock.raise_()  # a kind that sets end locations keeps its trajectory tab in front
-        w.viewport.set_skeletons(loaded.skeleton.parents, 1)
+        self.rig_viewport()
         self.c.playback.rig = None
         self.c.state.focus_action = 0
         # The legend first: set_legend redraws the points, so after set_points it would draw them twice.
@@ -183,6 +189,12 @@ class Loader:
             "Click a point to decode it."
         )
         self.c.modelLoaded.emit(loaded)
+
+    def rig_viewport(self) -> None:
+        """Give the 3-D view, once it exists, the loaded model's skeleton (one, until a motion plays)."""
+        loaded = self.c.state.model
+        if loaded is not None and self.c.window.has_viewport():
+            self.c.window.viewport.set_skeletons(loaded.skeleton.parents, 1)
 
     def _fill_color_combo(self, bank: LatentBank) -> None:
         """Offer the fixed colourings and every metadata key of ``bank`` worth colouring by."""

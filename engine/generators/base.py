@@ -9,6 +9,7 @@ refused with one line saying what the model can do instead.
 from __future__ import annotations
 
 import functools
+import importlib
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -231,6 +232,14 @@ class Generator(Protocol):
 
 Opener = Callable[[Path, str, bool], Generator]  # (folder, device, with_bank)
 _KINDS: dict[str, Opener] = {}
+# The kinds this program ships, as module and opener names: each is imported only when a folder of its
+# kind is opened, so that opening one kind does not load the others' modules.
+_BUILTIN = {
+    "odmo": ("engine.generators.odmo", "open_odmo"),
+    "a2m": ("engine.generators.a2m", "open_a2m"),
+    "modi": ("engine.generators.modi", "open_modi"),
+    "dvgan": ("engine.generators.dvgan", "open_dvgan"),
+}
 
 
 def register_kind(arch: str, opener: Opener) -> None:
@@ -240,8 +249,7 @@ def register_kind(arch: str, opener: Opener) -> None:
 
 def kinds() -> list[str]:
     """The registered kinds, sorted."""
-    _register_builtin()
-    return sorted(_KINDS)
+    return sorted(set(_KINDS) | set(_BUILTIN))
 
 
 def model_kind(path: str | Path) -> str:
@@ -262,7 +270,7 @@ def model_kind(path: str | Path) -> str:
 def open_generator(path: str | Path, device: str = "cpu", with_bank: bool = True) -> Generator:
     """The generator in a model folder, of whichever registered kind its ``model.json`` names; without
     its latent bank when ``with_bank`` is False (so that a damaged bank can be rebuilt)."""
-    return _KINDS[model_kind(path)](Path(path), device, with_bank)
+    return _opener(model_kind(path))(Path(path), device, with_bank)
 
 
 def refusal(generator: Generator, capability: str, asked: str | None = None) -> CapabilityError:
@@ -280,12 +288,9 @@ def require(generator: Generator, capability: str, asked: str | None = None) -> 
         raise refusal(generator, capability, asked)
 
 
-def _register_builtin() -> None:
-    """Register the kinds this program ships (imported lazily: each brings in torch)."""
-    if "odmo" not in _KINDS:
-        from engine.generators import a2m, dvgan, modi, odmo
-
-        register_kind("odmo", odmo.open_odmo)
-        register_kind("a2m", a2m.open_a2m)
-        register_kind("modi", modi.open_modi)
-        register_kind("dvgan", dvgan.open_dvgan)
+def _opener(arch: str) -> Opener:
+    """The opener of a registered kind; a shipped kind's module is imported on first use."""
+    if arch not in _KINDS:
+        module, name = _BUILTIN[arch]
+        _KINDS[arch] = getattr(importlib.import_module(module), name)
+    return _KINDS[arch]

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import subprocess
 import sys
 from pathlib import Path
@@ -76,3 +77,40 @@ def test_opening_the_3d_view_does_not_recreate_the_shown_window(qtbot, open_expl
     qtbot.waitUntil(window.has_viewport, timeout=20_000)
     qtbot.wait(300)
     assert (int(window.winId()), hidden) == (native_ids[0], []), "the window blinked out"
+
+
+def test_vtk_is_imported_off_the_gui_thread_after_the_model(tiny_model_dir: Path, tmp_path: Path) -> None:
+    script = (
+        "import json, sys, threading\n"
+        "first = {}\n"
+        "def hook(event, args):\n"
+        "    if event == 'import' and args[0] in ('pyvista', 'torch') and args[0] not in first:\n"
+        "        first[args[0]] = threading.current_thread() is threading.main_thread()\n"
+        "sys.addaudithook(hook)\n"
+        "from PySide6.QtCore import QSettings, QTimer\n"
+        "from PySide6.QtWidgets import QApplication\n"
+        "from explorer.app import create_explorer\n"
+        "app = QApplication([])\n"
+        f"ex = create_explorer({str(tiny_model_dir)!r}, None, QSettings({str(tmp_path / 's.ini')!r}, "
+        "QSettings.Format.IniFormat))\n"
+        "order = []\n"
+        "ex.controller.modelLoaded.connect(lambda m: order.append('model'))\n"
+        "def created():\n"
+        "    order.append('viewport')\n"
+        "    points = ex.window.viewport.skeleton_points()\n"
+        "    joints = len(ex.controller.state.model.skeleton.parents)\n"
+        "    rig = list(points.shape[:2])\n"
+        "    print(json.dumps({'order': order, 'on_main': first, 'rig': rig, 'joints': joints}))\n"
+        "    app.quit()\n"
+        "ex.window.viewportCreated.connect(lambda: QTimer.singleShot(0, created))\n"
+        "ex.window.show()\n"
+        "QTimer.singleShot(60_000, app.quit)\n"
+        "app.exec()\n"
+        "ex.close()\n"
+    )
+    done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0, done.stderr
+    seen = json.loads(done.stdout.strip().splitlines()[-1])
+    assert seen["order"] == ["model", "viewport"]
+    assert seen["on_main"] == {"torch": False, "pyvista": False}, "imported on the GUI thread"
+    assert seen["rig"] == [1, seen["joints"]], "the new 3-D view does not show the model's skeleton"
