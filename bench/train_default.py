@@ -37,7 +37,7 @@ from engine.generate import interpolate
 from engine.metrics.classifier import load_classifier, train_classifier
 from engine.metrics.evaluate import evaluate
 from engine.metrics.smoothness import max_frame_jump
-from engine.model.config import OdmoConfig
+from engine.model.config import SPEED_ERRORS, OdmoConfig
 from engine.modelio import load_model
 from engine.motion.datasets import load_folder
 from engine.motion.resample import resample_motion
@@ -61,6 +61,12 @@ def parse_args() -> argparse.Namespace:
     )
     p.add_argument(
         "--contrastive-pull", type=float, default=0.0, help="weight of the same-action pull (1: the paper's)"
+    )
+    p.add_argument(
+        "--speed-error",
+        choices=SPEED_ERRORS,
+        default="absolute",
+        help="how the w_speed term compares joint speeds (log: relative errors)",
     )
     p.add_argument(
         "--weight",
@@ -105,6 +111,7 @@ def main() -> int:
         epochs=args.epochs,
         tf_decay_epochs=args.tf_decay_epochs,
         contrastive_pull=args.contrastive_pull,
+        speed_error=args.speed_error,
         **weights,
     )
     work = args.work
@@ -282,7 +289,10 @@ def model_switches(config: OdmoConfig) -> str:
     if config.w_free > 0:
         parts.append(f"`w_free = {config.w_free:g}` (a reconstruction loss on a free-running decode)")
     if config.w_speed > 0:
-        parts.append(f"`w_speed = {config.w_speed:g}` (a loss on that decode's per-window joint speeds)")
+        what = "log " if config.speed_error == "log" else ""
+        parts.append(
+            f"`w_speed = {config.w_speed:g}` (a loss on that decode's per-window {what}joint speeds)"
+        )
     if config.contrastive_pull != 1.0:
         parts.append(
             f"`contrastive_pull = {config.contrastive_pull:g}` (the same-action pull of the contrastive term)"

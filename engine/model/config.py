@@ -19,11 +19,13 @@ _BEFORE_SWITCHES = {
     "w_skate": 1.0,
     "w_free": 0.0,
     "w_speed": 0.0,
+    "speed_error": "absolute",
 }
 SCHEDULED_SAMPLING = ("one_step", "free_run")
 #: The paper's model in one setting, ``OdmoConfig(n_actions, n_joints, **PAPER)``: every project change off.
 PAPER: dict[str, Any] = {"contrastive_pull": 1.0, **_BEFORE_SWITCHES}
 TRAIN_PRECISIONS = ("float32", "bfloat16")
+SPEED_ERRORS = ("absolute", "log")
 
 
 @dataclass
@@ -51,7 +53,8 @@ class OdmoConfig(ModelConfig):
     ``w_speed`` the squared error of that decode's per-window mean joint speeds (which, unlike an L2
     loss on positions, does not reward a still mean pose when the phase is uncertain); both are off by
     default, measured in the README ("Where the model differs from the paper"). The skate and speed
-    terms are in m²/s².
+    terms are in m²/s²; ``speed_error`` "log" compares log speeds instead (relative errors: a slow
+    wave's hand weighs as much as a run's feet).
     ``scheduled_sampling`` says where the non-teacher-forced previous poses come from: "one_step" (a
     teacher-forced pass, the default) or "free_run" (a free-running decode, as the reference's per-step
     loop does; measured worse on the bundled recipe, see the README).
@@ -98,6 +101,7 @@ class OdmoConfig(ModelConfig):
     w_skate: float = 1.0
     w_free: float = 0.0
     w_speed: float = 0.0
+    speed_error: str = "absolute"
     arch: str = "odmo"
 
     POSITIVE = ("n_actions", "n_joints", "window", "fps", "latent_dim", "enc_hidden", "enc_fc", "traj_hidden")
@@ -125,6 +129,9 @@ class OdmoConfig(ModelConfig):
         if self.train_precision not in TRAIN_PRECISIONS:
             choices = ", ".join(TRAIN_PRECISIONS)
             raise ConfigError(f"train_precision must be one of {choices}, got {self.train_precision!r}")
+        if self.speed_error not in SPEED_ERRORS:
+            choices = ", ".join(SPEED_ERRORS)
+            raise ConfigError(f"speed_error must be one of {choices}, got {self.speed_error!r}")
         if self.scheduled_sampling not in SCHEDULED_SAMPLING:
             choices = ", ".join(SCHEDULED_SAMPLING)
             raise ConfigError(f"scheduled_sampling must be one of {choices}, got {self.scheduled_sampling!r}")

@@ -54,10 +54,22 @@ def mean_speeds(joints: Tensor, mask: Tensor, fps: float, root: int) -> Tensor:
     return (speed * both).sum(1) / both.sum(1).clamp(min=1.0)
 
 
-def speed_loss(pred: Tensor, target: Tensor, mask: Tensor, fps: float, root: int) -> Tensor:
-    """Squared error (m²/s²) of the per-window mean joint speeds of ``pred`` against ``target``
-    (B, T, J, 3): the motion an L2 loss on positions lets shrink towards a mean pose."""
-    return (mean_speeds(pred, mask, fps, root) - mean_speeds(target, mask, fps, root)).square().mean()
+#: Speed (m/s) added to both sides of the log-speed error, so that joints at rest weigh little.
+LOG_SPEED_FLOOR = 0.05
+
+
+def speed_loss(
+    pred: Tensor, target: Tensor, mask: Tensor, fps: float, root: int, log: bool = False
+) -> Tensor:
+    """Squared error of the per-window mean joint speeds of ``pred`` against ``target`` (B, T, J, 3): the
+    motion an L2 loss on positions lets shrink towards a mean pose. In m²/s², or with ``log`` of
+    log(speed + LOG_SPEED_FLOOR), so that a hand waving at a third of its speed costs as much as a foot
+    running at a third of its own."""
+    pred_speed, target_speed = mean_speeds(pred, mask, fps, root), mean_speeds(target, mask, fps, root)
+    if log:
+        pred_speed = torch.log(pred_speed + LOG_SPEED_FLOOR)
+        target_speed = torch.log(target_speed + LOG_SPEED_FLOOR)
+    return (pred_speed - target_speed).square().mean()
 
 
 def contact_loss(logits: Tensor, labels: Tensor, mask: Tensor) -> Tensor:
@@ -143,7 +155,9 @@ def odmo_losses(
     }
     if free_joints is not None:
         terms["free"] = masked_mse(free_joints, joints, mask)
-        terms["speed"] = speed_loss(free_joints, joints, mask, config.fps, root)
+        terms["speed"] = speed_loss(
+            free_joints, joints, mask, config.fps, root, log=config.speed_error == "log"
+        )
     if contact_logits is not None and contacts is not None:
         feet = pred_joints[:, :, list(config.foot_joints)]
         terms["contact"] = contact_loss(contact_logits, contacts, mask)

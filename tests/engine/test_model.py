@@ -12,6 +12,7 @@ from engine.model import generator as generator_module
 from engine.model import odmo as odmo_module
 from engine.model.config import OdmoConfig
 from engine.model.losses import (
+    LOG_SPEED_FLOOR,
     contrastive_loss,
     masked_mse,
     mean_speeds,
@@ -327,6 +328,26 @@ def test_mean_speeds_are_root_relative_and_phase_free() -> None:
     )
 
 
+def test_log_speed_loss_weighs_relative_errors() -> None:
+    """A hand at a third of its speed costs the same whether it circles slowly or fast; the absolute
+    loss grows with the square of the speed instead."""
+    mask = torch.ones(1, 40, dtype=torch.bool)
+    floor = LOG_SPEED_FLOOR
+
+    def loss(radius: float, log: bool) -> torch.Tensor:
+        real = _circling(0.0, radius)
+        slow = real.clone()
+        slow[:, :, 1] = real[:, :, 0] + (real[:, :, 1] - real[:, :, 0]) / 3  # a third of the radius
+        return speed_loss(slow, real, mask, 20.0, root=0, log=log)
+
+    speed = mean_speeds(_circling(0.0, 0.5), mask, 20.0, root=0)[0, 1]
+    expected = (math.log(speed / 3 + floor) - math.log(speed + floor)) ** 2 / 2  # the root: no error
+    torch.testing.assert_close(loss(0.5, log=True), torch.tensor(expected, dtype=torch.float64))
+    assert 0.75 < float(loss(0.1, log=True) / loss(0.5, log=True)) < 1.0
+    ratio = loss(0.1, log=False) / loss(0.5, log=False)
+    torch.testing.assert_close(ratio, torch.tensor(0.04, dtype=torch.float64))  # (0.1 / 0.5)²
+
+
 def test_skate_loss_is_the_squared_speed_of_planted_feet() -> None:
     t = torch.arange(10, dtype=torch.float32)
     feet = torch.zeros(1, 10, 2, 3)
@@ -395,6 +416,10 @@ def test_config_round_trip_and_validation() -> None:
         OdmoConfig(n_actions=0, n_joints=21)
     with pytest.raises(ConfigError, match="train_precision must be one of float32, bfloat16, got 'fp8'"):
         OdmoConfig(n_actions=10, n_joints=21, train_precision="fp8")
+    with pytest.raises(ConfigError, match="speed_error must be one of absolute, log, got 'relative'"):
+        OdmoConfig(n_actions=10, n_joints=21, speed_error="relative")
+    old = {k: v for k, v in cfg.to_dict().items() if k != "speed_error"}  # a model.json from before it
+    assert OdmoConfig.from_dict(old).speed_error == "absolute"
     assert cfg.teacher_forcing(0) == 1.0 and math.isclose(cfg.teacher_forcing(10_000), 0.3)
     assert math.isclose(cfg.teacher_forcing(cfg.tf_decay_epochs // 2), 0.65)
 
