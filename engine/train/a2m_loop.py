@@ -13,22 +13,19 @@ from sklearn.decomposition import PCA
 
 from engine.latent.bank import LatentBank, build_bank
 from engine.model.a2m import A2M_LOSS_TERMS, A2mConfig, A2mModel, a2m_losses
-from engine.modelio import resolve_device, save_bank, write_model_folder
+from engine.modelio import save_bank, write_model_folder
 from engine.motion.ik import joints_to_rotations
 from engine.motion.motion import Motion
 from engine.train.epochs import (
     TrainProgress,
     TrainResult,
-    check_sizes,
     clipped_step,
-    provenance,
     root_height,
     split_metas,
-    steps_per_epoch,
-    train_steps,
 )
-from engine.train.pairs import PairSampler, split_clips
-from engine.train.windows import PreparedClips, WindowBatch, crop_windows, prepare_clips
+from engine.train.kind_run import KindRun, RunOptions
+from engine.train.pairs import PairSampler
+from engine.train.windows import PreparedClips, WindowBatch, crop_windows
 
 log = logging.getLogger(__name__)
 
@@ -190,43 +187,19 @@ def train_a2m(
     ``bank_k_range``); ``resume`` and ``cancel`` behave as in ``train``.
     """
     out = Path(out_dir)
-    dev = resolve_device(device)
-    prepared = prepare_clips(clips, action_names, config.fps, config.window)
-    check_sizes(config.n_actions, config.n_joints, prepared)
-    train_idx, val_idx = split_clips(prepared.actions, val_fraction, seed)
+    options = RunOptions(seed, device, resume, val_fraction, progress, cancel, checkpoint_every)
+    data = KindRun.prepare(clips, action_names, config, options)
+    prepared, train_idx = data.prepared, data.train_idx
     model = A2mModel(config, seed=seed)
     if config.pose_rep == "lie":
         model.set_skeleton(prepared.skeleton)
         model.set_rest_bias(rest_rotations(prepared, train_idx))
-    model = model.to(dev)
-    validation = crop_windows(prepared, val_idx, None) if len(val_idx) else None
-    steps = A2mSteps(model, prepared, train_idx, validation)
-    run = train_steps(
-        steps,
-        out,
-        config,
-        prepared,
-        seed=seed,
-        val_fraction=val_fraction,
-        device=dev,
-        resume=resume,
-        progress=progress,
-        cancel=cancel,
-        checkpoint_every=checkpoint_every,
-    )
+    model = model.to(data.device)
+    validation = crop_windows(prepared, data.val_idx, None) if len(data.val_idx) else None
+    run = data.train(A2mSteps(model, prepared, train_idx, validation), out, config)
     if config.code_dim:
         fit_code_space(model, prepared, train_idx)
-    made = provenance(
-        prepared,
-        (train_idx, val_idx),
-        run,
-        seed=seed,
-        epochs=config.epochs,
-        device=dev,
-        arch="a2m",
-        windows_seen=config.epochs * steps_per_epoch(config) * config.batch_size,
-        train_sources=[prepared.sources[i] for i in train_idx],
-    )
+    made = data.provenance(run, config)
     height = root_height(prepared)
     write_model_folder(
         out, model, config.to_dict(), prepared.skeleton, prepared.action_names, made, height, "a2m"
@@ -234,7 +207,7 @@ def train_a2m(
     bank = None
     if config.code_dim:
         bank = a2m_bank(
-            model, prepared, val_idx, projections=bank_projections, k_range=bank_k_range, seed=seed
+            model, prepared, data.val_idx, projections=bank_projections, k_range=bank_k_range, seed=seed
         )
         save_bank(out, bank)
-    return TrainResult.of(out, config.epochs, run, (train_idx, val_idx), bank)
+    return data.result(out, config, run, bank)

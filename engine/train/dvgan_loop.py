@@ -13,20 +13,15 @@ import torch
 from engine.latent.bank import LatentBank, build_bank
 from engine.model.dvgan import DvganConfig, DvganNetwork, phrase_words
 from engine.model.dvgan_features import n_features
-from engine.modelio import resolve_device, save_bank, write_model_folder
+from engine.modelio import save_bank, write_model_folder
 from engine.motion.motion import Motion
 from engine.train.dvgan_steps import ClipFeatures, DvganSteps, clip_features
 from engine.train.epochs import (
     TrainProgress,
     TrainResult,
-    check_sizes,
-    provenance,
     root_height,
-    steps_per_epoch,
-    train_steps,
 )
-from engine.train.pairs import split_clips
-from engine.train.windows import prepare_clips
+from engine.train.kind_run import KindRun, RunOptions
 
 ARCH = "dvgan"
 #: Top-level codes per action in a bank.
@@ -94,38 +89,15 @@ def train_dvgan(
     typical skeleton, train_log.csv, checkpoints/last.pt, latent_bank.npz); the split, budget, ``resume``
     and ``cancel`` as in ``engine.train.loop.train``."""
     out = Path(out_dir)
-    dev = resolve_device(device)
-    prepared = prepare_clips(clips, action_names, config.fps, config.window)
-    check_sizes(config.n_actions, config.n_joints, prepared)
+    options = RunOptions(seed, device, resume, val_fraction, progress, cancel, checkpoint_every)
+    data = KindRun.prepare(clips, action_names, config, options)
+    prepared = data.prepared
     features = clip_features(prepared)
     config = data_config(config, prepared.action_names, features)
-    train_idx, val_idx = split_clips(prepared.actions, val_fraction, seed)
-    steps = DvganSteps(config, prepared, train_idx, val_idx, features, seed=seed, device=dev)
-    run = train_steps(
-        steps,
-        out,
-        config,
-        prepared,
-        seed=seed,
-        val_fraction=val_fraction,
-        device=dev,
-        resume=resume,
-        progress=progress,
-        cancel=cancel,
-        checkpoint_every=checkpoint_every,
-    )
-    made = provenance(
-        prepared,
-        (train_idx, val_idx),
-        run,
-        seed=seed,
-        epochs=config.epochs,
-        device=dev,
-        arch=ARCH,
-        steps=int(steps.counter.steps),
-        windows_seen=config.epochs * steps_per_epoch(config) * config.batch_size,
-        train_sources=[prepared.sources[i] for i in train_idx],
-    )
+    train_idx, val_idx = data.split
+    steps = DvganSteps(config, prepared, train_idx, val_idx, features, seed=seed, device=data.device)
+    run = data.train(steps, out, config)
+    made = data.provenance(run, config, steps=int(steps.counter.steps))
     generator = steps.g.eval()
     write_model_folder(
         out, generator, config.to_dict(), features.skeleton, prepared.action_names, made,
@@ -137,4 +109,4 @@ def train_dvgan(
             k_range=bank_k_range, seed=seed,
         )  # fmt: skip
     save_bank(out, bank)
-    return TrainResult.of(out, config.epochs, run, (train_idx, val_idx), bank)
+    return data.result(out, config, run, bank)

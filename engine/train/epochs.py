@@ -7,19 +7,16 @@ import csv
 import io
 import logging
 import math
-import platform
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
-from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any, Protocol
 
 import numpy as np
 import torch
 
-from engine import __version__
-from engine.errors import CancelledError, ConfigError, ModelFormatError
+from engine.errors import CancelledError, ModelFormatError
 from engine.fileio import atomic_write_text
 from engine.latent.bank import LatentBank
 from engine.model.config_base import ModelConfig
@@ -263,81 +260,6 @@ def clipped_step(
 def steps_per_epoch(config: ModelConfig) -> int:
     """Steps of one epoch: the config's ``epoch_size`` windows in batches of ``batch_size``."""
     return max(1, math.ceil(config.epoch_size / config.batch_size))  # type: ignore[attr-defined]
-
-
-def train_steps(
-    steps: EpochSteps,
-    out_dir: Path,
-    config: ModelConfig,
-    prepared: PreparedClips,
-    *,
-    seed: int,
-    val_fraction: float,
-    device: torch.device,
-    resume: bool = False,
-    progress: Callable[[TrainProgress], None] | None = None,
-    cancel: Callable[[], bool] | None = None,
-    checkpoint_every: int = 10,
-    ranks: Ranks = SINGLE,
-) -> EpochsRun:
-    """``run_epochs`` as a kind's ``train`` calls it: ``config.epochs`` epochs of ``steps_per_epoch``,
-    the run's identity from its config, data (``prepared``), seed and split, the RNGs from ``seed``."""
-    return run_epochs(
-        steps,
-        out_dir,
-        config,
-        run_identity(config, prepared.fingerprint(), seed, val_fraction),
-        epochs=config.epochs,  # type: ignore[attr-defined]
-        steps_per_epoch=steps_per_epoch(config),
-        rng=np.random.default_rng(seed),
-        generator=torch.Generator(device).manual_seed(seed),
-        resume=resume,
-        progress=progress,
-        cancel=cancel,
-        checkpoint_every=checkpoint_every,
-        ranks=ranks,
-    )
-
-
-def check_sizes(n_actions: int, n_joints: int, prepared: PreparedClips) -> None:
-    """ConfigError unless the config's action and joint counts are the data's."""
-    if n_actions != len(prepared.action_names) or n_joints != prepared.skeleton.n_joints:
-        raise ConfigError(
-            f"config has {n_actions} actions and {n_joints} joints, data has "
-            f"{len(prepared.action_names)} and {prepared.skeleton.n_joints}"
-        )
-
-
-def provenance(
-    prepared: PreparedClips,
-    split: tuple[np.ndarray, np.ndarray],
-    run: EpochsRun,
-    *,
-    seed: int,
-    epochs: int,
-    device: torch.device,
-    **extra: Any,
-) -> dict[str, Any]:
-    """The model folder's provenance: data, split, seed, budget, device, time and versions (+ ``extra``)."""
-    train_idx, val_idx = split
-    return {
-        "data_fingerprint": prepared.fingerprint(),
-        "n_clips": prepared.n_clips,
-        "n_train": len(train_idx),
-        "n_val": len(val_idx),
-        "seed": seed,
-        "epochs": epochs,
-        "train_seconds": round(run.train_seconds, 3),
-        "device": str(device),
-        "created": datetime.now(UTC).isoformat(timespec="seconds"),
-        **extra,
-        "versions": {
-            "odmo_explorer": __version__,
-            "torch": torch.__version__,
-            "numpy": np.__version__,
-            "python": platform.python_version(),
-        },
-    }
 
 
 def root_height(prepared: PreparedClips) -> float:

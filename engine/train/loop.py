@@ -18,27 +18,24 @@ from engine.model.config import OdmoConfig
 from engine.model.losses import LOSS_TERMS, odmo_losses
 from engine.model.odmo import OdmoModel
 from engine.model.precision import bfloat16_autocast, native_bfloat16
-from engine.modelio import resolve_device, save_bank, save_model
+from engine.modelio import save_bank, save_model
 from engine.motion.contact import contact_labels, foot_joints, resting_heights
 from engine.motion.motion import Motion
-from engine.train.distributed import SINGLE, Ranks, mean_over_ranks, parallel, rank_device
+from engine.train.distributed import SINGLE, Ranks, mean_over_ranks, parallel
 from engine.train.epochs import (
     TrainProgress,
     TrainResult,
-    check_sizes,
     clipped_step,
-    provenance,
     root_height,
     split_metas,
-    train_steps,
 )
-from engine.train.pairs import PairSampler, split_clips
+from engine.train.kind_run import KindRun, RunOptions
+from engine.train.pairs import PairSampler
 from engine.train.windows import (
     PreparedClips,
     WindowBatch,
     crop_starts,
     crop_windows,
-    prepare_clips,
     windows_at,
 )
 
@@ -307,39 +304,21 @@ def train(
     and rank 0 alone writes the folder; the other ranks' result has no bank.
     """
     out = Path(out_dir)
-    dev = rank_device(resolve_device(device), ranks)
+    options = RunOptions(seed, device, resume, val_fraction, progress, cancel, checkpoint_every, ranks)
+    data = KindRun.prepare(clips, action_names, config, options)
+    prepared, dev = data.prepared, data.device
     if config.train_precision == "bfloat16" and not native_bfloat16(dev.type):
         log.warning(
             "this %s has no bfloat16 instructions: bfloat16 training runs, but slower than float32", dev
         )
-    prepared = prepare_clips(clips, action_names, config.fps, config.window)
-    check_sizes(config.n_actions, config.n_joints, prepared)
-    train_idx, val_idx = split_clips(prepared.actions, val_fraction, seed)
-    config = with_feet(config, prepared, train_idx)
+    config = with_feet(config, prepared, data.train_idx)
     model = OdmoModel(config, seed=seed).to(dev)
     model.attach_skeleton(prepared.skeleton)
-    validation = _validation_set(prepared, val_idx, seed, dev, config)
-    steps = OdmoSteps(model, prepared, train_idx, validation, ranks)
-    run = train_steps(
-        steps,
-        out,
-        config,
-        prepared,
-        seed=seed,
-        val_fraction=val_fraction,
-        device=dev,
-        resume=resume,
-        progress=progress,
-        cancel=cancel,
-        checkpoint_every=checkpoint_every,
-        ranks=ranks,
-    )
-    split = (train_idx, val_idx)
+    validation = _validation_set(prepared, data.val_idx, seed, dev, config)
+    run = data.train(OdmoSteps(model, prepared, data.train_idx, validation, ranks), out, config)
     if not ranks.is_main:
-        return TrainResult.of(out, config.epochs, run, split, None)
-    made = provenance(
-        prepared, split, run, seed=seed, epochs=config.epochs, device=dev, processes=ranks.world
-    )
+        return data.result(out, config, run, None)
+    made = data.provenance(run, config, processes=ranks.world)
     save_model(out, model, config, prepared.skeleton, prepared.action_names, made, root_height(prepared))
 
     codes, ends = _encode_all(model, prepared, dev)
@@ -367,7 +346,7 @@ def train(
         prepared.actions,
         ends,
         prepared.sources,
-        split_metas(prepared, val_idx),
+        split_metas(prepared, data.val_idx),
         prepared.action_names,
         k_range=bank_k_range,
         projections=tuple(bank_projections),
@@ -376,4 +355,4 @@ def train(
         cancel=cancel,
     )
     save_bank(out, bank)
-    return TrainResult.of(out, config.epochs, run, split, bank)
+    return data.result(out, config, run, bank)

@@ -15,23 +15,19 @@ from engine.generators.modi import save_modi
 from engine.generators.modi_latent import INVERT_STEPS, decode_codes, invert, sample_w
 from engine.latent.bank import LatentBank, build_bank
 from engine.model.modi import ModiConfig, ModiNetwork
-from engine.modelio import resolve_device, save_bank
+from engine.modelio import save_bank
 from engine.motion.contact import foot_joints, resting_heights
 from engine.motion.motion import Motion
 from engine.motion.skeleton import Skeleton
 from engine.train.epochs import (
     TrainProgress,
     TrainResult,
-    check_sizes,
-    provenance,
     root_height,
     split_metas,
-    steps_per_epoch,
-    train_steps,
 )
+from engine.train.kind_run import KindRun, RunOptions
 from engine.train.modi_steps import ClipFeatures, ModiSteps
-from engine.train.pairs import split_clips
-from engine.train.windows import PreparedClips, crop_windows, prepare_clips
+from engine.train.windows import PreparedClips, crop_windows
 
 if TYPE_CHECKING:
     from engine.metrics.classifier import Classifier
@@ -175,37 +171,15 @@ def train_modi(
     the bank holds ``bank_samples`` prior codes and the clips (all, or ``bank_per_label`` per label)
     inverted in W by ``bank_steps`` steps."""
     out = Path(out_dir)
-    dev = resolve_device(device)
-    prepared = prepare_clips(clips, action_names, config.fps, config.window)
-    check_sizes(config.n_actions, config.n_joints, prepared)
-    train_idx, val_idx = split_clips(prepared.actions, val_fraction, seed)
-    steps = ModiSteps(config, prepared, train_idx, val_idx, seed=seed, device=dev, clips=clip_features)
-    run = train_steps(
-        steps,
-        out,
-        config,
-        prepared,
-        seed=seed,
-        val_fraction=val_fraction,
-        device=dev,
-        resume=resume,
-        progress=progress,
-        cancel=cancel,
-        checkpoint_every=checkpoint_every,
+    options = RunOptions(seed, device, resume, val_fraction, progress, cancel, checkpoint_every)
+    data = KindRun.prepare(clips, action_names, config, options)
+    prepared, (train_idx, val_idx) = data.prepared, data.split
+    steps = ModiSteps(
+        config, prepared, train_idx, val_idx, seed=seed, device=data.device, clips=clip_features
     )
+    run = data.train(steps, out, config)
     network = shipped_network(steps, prepared)
-    made = provenance(
-        prepared,
-        (train_idx, val_idx),
-        run,
-        seed=seed,
-        epochs=config.epochs,
-        device=dev,
-        arch="modi",
-        steps=int(steps.counter.steps),
-        windows_seen=config.epochs * steps_per_epoch(config) * config.batch_size,
-        train_sources=[prepared.sources[i] for i in train_idx],
-    )
+    made = data.provenance(run, config, steps=int(steps.counter.steps))
     save_modi(out, network, prepared.skeleton, prepared.action_names, made, root_height(prepared))
     bank = modi_bank(
         network,
@@ -221,4 +195,4 @@ def train_modi(
         cancel=cancel,
     )
     save_bank(out, bank)
-    return TrainResult.of(out, config.epochs, run, (train_idx, val_idx), bank)
+    return data.result(out, config, run, bank)

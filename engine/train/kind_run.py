@@ -1,0 +1,131 @@
+"""What every kind's ``train`` does around its own steps: the clips as windows checked against the
+config, the split of the clips, the epoch loop, and the provenance and result of the run."""
+
+from __future__ import annotations
+
+import platform
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from datetime import UTC, datetime
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import torch
+
+from engine import __version__
+from engine.errors import ConfigError
+from engine.latent.bank import LatentBank
+from engine.model.config_base import ModelConfig
+from engine.modelio import resolve_device
+from engine.motion.motion import Motion
+from engine.train.distributed import SINGLE, Ranks, rank_device
+from engine.train.epochs import (
+    EpochsRun,
+    EpochSteps,
+    TrainProgress,
+    TrainResult,
+    run_epochs,
+    run_identity,
+    steps_per_epoch,
+)
+from engine.train.pairs import split_clips
+from engine.train.windows import PreparedClips, prepare_clips
+
+
+@dataclass(frozen=True)
+class RunOptions:
+    """How one training run goes, whatever the kind (the keywords every ``train`` function takes)."""
+
+    seed: int = 0
+    device: str = "auto"
+    resume: bool = False
+    val_fraction: float = 0.1
+    progress: Callable[[TrainProgress], None] | None = None
+    cancel: Callable[[], bool] | None = None
+    checkpoint_every: int = 10
+    ranks: Ranks = SINGLE
+
+
+@dataclass
+class KindRun:
+    """One training run: the clips as windows at the config's rate and length, their (train, validation)
+    split, the device, and the options; ``train`` runs a kind's steps on it."""
+
+    prepared: PreparedClips
+    train_idx: np.ndarray
+    val_idx: np.ndarray
+    device: torch.device
+    options: RunOptions
+
+    @classmethod
+    def prepare(
+        cls, clips: Sequence[Motion], action_names: list[str], config: ModelConfig, options: RunOptions
+    ) -> KindRun:
+        """Windows of ``clips`` for ``config`` (ConfigError unless its action and joint counts are the
+        data's), split by ``options.val_fraction`` and ``options.seed``, on this rank's device."""
+        device = rank_device(resolve_device(options.device), options.ranks)
+        prepared = prepare_clips(clips, action_names, config.fps, config.window)  # type: ignore[attr-defined]
+        n_actions, n_joints = config.n_actions, config.n_joints  # type: ignore[attr-defined]
+        if n_actions != len(prepared.action_names) or n_joints != prepared.skeleton.n_joints:
+            raise ConfigError(
+                f"config has {n_actions} actions and {n_joints} joints, data has "
+                f"{len(prepared.action_names)} and {prepared.skeleton.n_joints}"
+            )
+        train_idx, val_idx = split_clips(prepared.actions, options.val_fraction, options.seed)
+        return cls(prepared, train_idx, val_idx, device, options)
+
+    @property
+    def split(self) -> tuple[np.ndarray, np.ndarray]:
+        """The (train, validation) clip indices."""
+        return self.train_idx, self.val_idx
+
+    def train(self, steps: EpochSteps, out: Path, config: ModelConfig) -> EpochsRun:
+        """``run_epochs`` of ``steps``: ``config.epochs`` epochs of ``steps_per_epoch``, the run's identity
+        from its config, data, seed and split, the RNGs from the seed."""
+        o = self.options
+        return run_epochs(
+            steps,
+            out,
+            config,
+            run_identity(config, self.prepared.fingerprint(), o.seed, o.val_fraction),
+            epochs=config.epochs,  # type: ignore[attr-defined]
+            steps_per_epoch=steps_per_epoch(config),
+            rng=np.random.default_rng(o.seed),
+            generator=torch.Generator(self.device).manual_seed(o.seed),
+            resume=o.resume,
+            progress=o.progress,
+            cancel=o.cancel,
+            checkpoint_every=o.checkpoint_every,
+            ranks=o.ranks,
+        )
+
+    def provenance(self, run: EpochsRun, config: ModelConfig, **extra: Any) -> dict[str, Any]:
+        """The model folder's provenance: kind, data, split, seed, budget, device, time and versions
+        (+ ``extra``)."""
+        epochs = config.epochs  # type: ignore[attr-defined]
+        return {
+            "arch": config.ARCH,
+            "data_fingerprint": self.prepared.fingerprint(),
+            "n_clips": self.prepared.n_clips,
+            "n_train": len(self.train_idx),
+            "n_val": len(self.val_idx),
+            "seed": self.options.seed,
+            "epochs": epochs,
+            "windows_seen": epochs * steps_per_epoch(config) * config.batch_size,  # type: ignore[attr-defined]
+            "train_seconds": round(run.train_seconds, 3),
+            "device": str(self.device),
+            "created": datetime.now(UTC).isoformat(timespec="seconds"),
+            **extra,
+            "train_sources": [self.prepared.sources[i] for i in self.train_idx],
+            "versions": {
+                "odmo_explorer": __version__,
+                "torch": torch.__version__,
+                "numpy": np.__version__,
+                "python": platform.python_version(),
+            },
+        }
+
+    def result(self, out: Path, config: ModelConfig, run: EpochsRun, bank: LatentBank | None) -> TrainResult:
+        """What the kind's ``train`` returns."""
+        return TrainResult.of(out, config.epochs, run, self.split, bank)  # type: ignore[attr-defined]
