@@ -7,21 +7,27 @@ own rows, with the torch FK of local rotations (what a rotation-output decoder w
 Reference rows: the paper's modules built plainly (``plain_decode``: the reference code's structure, one
 nn.LSTM call per frame in a Python loop) on the same random weights, timed beside OdmoModel.decode in the
 same run, with the speed ratio and the largest difference of their joints. Aim: < 6 ms, >= 5,000/s.
-The reduced-precision rows decode the bundled model's bank codes under bfloat16 autocast against
-float32 in the same run: the speed ratio and the largest joint difference.
+The reduced-precision rows decode the bundled model's bank codes against float32 in the same run (speed
+ratio, largest joint difference): OdmoModel.decode under bfloat16 autocast; int8 dynamic quantization
+(quantize_dynamic of every nn.LSTM and nn.Linear) of the paper's modules, against them in float32, since
+the fused decoder loop reads float weights that quantize_dynamic cannot reach; and int8-rounded weights
+in float32 arithmetic, the accuracy int8 weights allow at best.
 """
 
 from __future__ import annotations
 
 import argparse
+import copy
 import statistics
 import sys
 import time
+import warnings
 from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
 import torch
+from torch import nn
 
 if __package__ in (None, ""):
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
@@ -185,7 +191,7 @@ def _plain_modules(loaded: LoadedModel, rng: np.random.Generator, repeats: int) 
         n = max(3, repeats // max(1, batch // 16))
         with torch.inference_mode():
             raw = model.decode_full(z, a, e).raw
-            error = torch.linalg.vector_norm(plain_decode(model, z, a, e) - raw, dim=-1).max()
+            error = _largest_mm(plain_decode(model, z, a, e) - raw, 4)
             plain = _timed(lambda z=z, a=a, e=e: plain_decode(model, z, a, e), n)
             ours = _timed(lambda z=z, a=a, e=e: model.decode(z, a, e), n)
         rows.append(
@@ -195,40 +201,93 @@ def _plain_modules(loaded: LoadedModel, rng: np.random.Generator, repeats: int) 
                 "ms": round(plain * 1e3, 2),
                 "motions/s": round(batch / plain),
                 "OdmoModel.decode vs plain": f"{plain / ours:.2f}x",
-                "max joint difference mm": round(float(error) * 1e3, 4),
+                "max joint difference mm": error,
             }
         )
     return rows
 
 
+def int8_dynamic(model: OdmoModel) -> OdmoModel:
+    """A copy of ``model`` with every nn.LSTM and nn.Linear int8 dynamically quantized (torch's quantized
+    engine, x86 / fbgemm here). Only ``plain_decode`` runs it: OdmoModel.decode's fused loop reads the
+    float weights of the nn.LSTM that quantize_dynamic replaces."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # torch.ao.quantization is deprecated in favour of torchao
+        return torch.ao.quantization.quantize_dynamic(copy.deepcopy(model), {nn.LSTM, nn.Linear}, torch.qint8)
+
+
+@torch.no_grad()
+def int8_rounded(model: OdmoModel) -> OdmoModel:
+    """A copy of ``model`` whose nn.LSTM and nn.Linear weights are rounded to int8, one symmetric scale
+    per output row, and kept in float32: int8 weights with exact activations, int8's best accuracy."""
+    rounded = copy.deepcopy(model)
+    for module in rounded.modules():
+        if isinstance(module, nn.LSTM | nn.Linear):
+            for name, weight in module.named_parameters():
+                if name.startswith("weight"):
+                    scale = weight.abs().amax(1, keepdim=True).clamp_min(1e-12) / 127
+                    weight.copy_((weight / scale).round() * scale)
+    return rounded
+
+
+def _precision_row(
+    what: str, batch: int, seconds: float, reference: float, error: torch.Tensor
+) -> dict[str, object]:
+    """One reduced-precision row: time, rate, speed-up over the float32 ``reference`` seconds and the
+    largest joint difference ``error`` (B, T, J, 3) in mm."""
+    return {
+        "what": what,
+        "batch": batch,
+        "ms": round(seconds * 1e3, 2),
+        "motions/s": round(batch / seconds),
+        "vs float32": f"{reference / seconds:.2f}x",
+        "max joint difference mm": _largest_mm(error),
+    }
+
+
+def _largest_mm(error: torch.Tensor, digits: int = 1) -> float:
+    """The largest joint distance of ``error`` (..., 3), metres, in millimetres rounded to ``digits``."""
+    return round(float(torch.linalg.vector_norm(error, dim=-1).max()) * 1e3, digits)
+
+
 def _reduced_precision(repeats: int) -> list[dict[str, object]]:
-    """The bundled model's decode of its bank codes under bfloat16 autocast against float32: time, speed-up
-    and the largest joint difference, at batch 1, 64 and 1024."""
+    """The bundled model's decode of its bank codes in reduced precision against float32 in the same run,
+    at batch 1, 2, 64 and 1024, every joint on the skeleton's bone lengths: OdmoModel.decode under
+    bfloat16 autocast; the paper's modules int8 dynamically quantized, against the same modules in
+    float32; and the int8-rounded weights in float32 arithmetic (accuracy only)."""
     loaded = load_model(BUNDLED.parent)
     model, bank = loaded.model, loaded.bank
+    model.attach_skeleton(loaded.skeleton)
+    quantized, rounded_model = int8_dynamic(model), int8_rounded(model)
+    bf16 = "bundled model decode, bfloat16 autocast" + (
+        "" if native_bfloat16("cpu") else " (no bfloat16 instructions)"
+    )
+    engine = torch.backends.quantized.engine
+    int8 = f"bundled model, the paper's modules int8 (quantize_dynamic, {engine}; vs them in float32)"
     rows: list[dict[str, object]] = []
-    for batch in (1, 64, 1024):
+    for batch in (1, 2, 64, 1024):
         rows_of = np.arange(batch) % len(bank.codes)
         z, a, e = (torch.from_numpy(x[rows_of]) for x in (bank.codes, bank.actions, bank.ends))
         n = max(3, repeats // max(1, batch // 16))
         with torch.inference_mode():
             exact = model.decode(z, a, e)[0]
             f32 = _timed(lambda z=z, a=a, e=e: model.decode(z, a, e), n)
+            plain = _timed(lambda z=z, a=a, e=e: plain_decode(model, z, a, e), n)
+            reduced = model.projection(plain_decode(quantized, z, a, e))
+            i8 = _timed(lambda z=z, a=a, e=e: plain_decode(quantized, z, a, e), n)
+            rounded = rounded_model.decode(z, a, e)[0]
             with bfloat16_autocast("cpu"):
-                reduced = model.decode(z, a, e)[0].float()
+                b16_joints = model.decode(z, a, e)[0].float()
                 b16 = _timed(lambda z=z, a=a, e=e: model.decode(z, a, e), n)
-        error = torch.linalg.vector_norm(reduced - exact, dim=-1)
-        rows.append(
+        rows += [
+            _precision_row(bf16, batch, b16, f32, b16_joints - exact),
+            _precision_row(int8, batch, i8, plain, reduced - exact),
             {
-                "what": "bundled model decode, bfloat16 autocast"
-                + ("" if native_bfloat16("cpu") else " (no bfloat16 instructions)"),
+                "what": "bundled model decode, int8-rounded weights in float32 (int8's best accuracy)",
                 "batch": batch,
-                "ms": round(b16 * 1e3, 2),
-                "motions/s": round(batch / b16),
-                "vs float32": f"{f32 / b16:.2f}x",
-                "max joint difference mm": round(float(error.max()) * 1e3, 1),
-            }
-        )
+                "max joint difference mm": _largest_mm(rounded - exact),
+            },
+        ]
     return rows
 
 
