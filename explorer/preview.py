@@ -9,11 +9,14 @@ from __future__ import annotations
 import json
 import logging
 import zipfile
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+
+from engine.latent.columns import MetaColumns
 
 log = logging.getLogger(__name__)
 
@@ -31,7 +34,7 @@ class BankPreview:
     actions : (N,) int64 action index of each code.
     action_names : the model's action names.
     sources : (N,) clip names.
-    meta : N dicts of clip information (style …).
+    meta : N rows of clip information (style …), each a dict.
     embeddings : projection name -> (N, 2) float64 map positions.
     """
 
@@ -39,7 +42,7 @@ class BankPreview:
     actions: np.ndarray
     action_names: list[str]
     sources: np.ndarray
-    meta: list[dict[str, Any]]
+    meta: Sequence[dict[str, Any]]
     embeddings: dict[str, np.ndarray]
 
 
@@ -55,14 +58,18 @@ def read_preview(model_dir: str | Path) -> BankPreview | None:
                 return None
             actions = np.asarray(npz["actions"], dtype=np.int64)
             names = [str(n) for n in npz["action_names"]]
-            sources = np.asarray(npz["sources"])
-            meta = [json.loads(str(m)) for m in npz["meta"]]
+            if "sources" in npz.files:  # format versions 1 and 2: a name and a JSON dict per row
+                sources = np.asarray(npz["sources"])
+                meta: Sequence[dict[str, Any]] = [json.loads(str(m)) for m in npz["meta"]]
+            else:
+                sources = npz["source_names"].astype(object)[npz["source_index"]]
+                meta = MetaColumns.from_arrays(npz, len(actions))
             embeddings = {}
             for name in npz["projection_names"]:
                 key = f"projections/{name}/embedding"
                 if key in npz.files:
                     embeddings[str(name)] = np.asarray(npz[key], dtype=np.float64)
-    except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile, json.JSONDecodeError) as exc:
+    except (OSError, ValueError, KeyError, IndexError, EOFError, zipfile.BadZipFile) as exc:
         log.debug("%s: no bank preview (%s)", folder, exc)
         return None
     n = len(actions)

@@ -245,6 +245,7 @@ def _cmd_bank(args: argparse.Namespace) -> int:
 def _bank_locked(args: argparse.Namespace) -> int:
     from engine.generators import open_generator, require
     from engine.latent.bank import build_bank
+    from engine.latent.columns import MetaColumns
     from engine.modelio import save_bank
 
     loaded = open_generator(args.model, with_bank=False)  # a damaged bank must not stop its rebuild
@@ -254,12 +255,19 @@ def _bank_locked(args: argparse.Namespace) -> int:
     unknown = sorted({c.action for c in dataset.clips} - set(names))
     if unknown:
         raise DataError(f"{args.data}: actions {unknown} are not the model's {names}")
-    codes, ends, owners, starts = loaded.encode_bank(dataset.clips, args.stride)
-    clips = [dataset.clips[k] for k in owners]
-    metas = [dict(c.meta) for c in clips]
+    clips = dataset.clips
+    with tqdm(total=0, unit="window", desc="encoding", file=sys.stderr) as bar:
+
+        def encoded(done: int, total: int) -> None:
+            bar.total = total
+            bar.update(done - bar.n)
+
+        codes, ends, owners, starts = loaded.encode_bank(clips, args.stride, progress=encoded)
+    # One entry per clip, indexed by each code's clip: no dict or name string per window.
+    extra = {}
     if starts is not None:
-        window = {"window_stride": args.stride}
-        metas = [m | window | {"window_start": int(s)} for m, s in zip(metas, starts, strict=True)]
+        extra = {"window_stride": np.full(len(starts), args.stride), "window_start": starts}
+    sources = [str(c.meta.get("source", c.meta.get("path", i))) for i, c in enumerate(clips)]
     progress = tqdm(total=1.0, bar_format=_BAR, file=sys.stderr)
     try:
 
@@ -269,10 +277,10 @@ def _bank_locked(args: argparse.Namespace) -> int:
 
         bank = build_bank(
             codes,
-            np.array([names.index(c.action) for c in clips]),
+            np.array([names.index(c.action) for c in clips], dtype=np.int64)[owners],
             ends,
-            [str(c.meta.get("source", c.meta.get("path", i))) for i, c in enumerate(clips)],
-            metas,
+            np.asarray(sources, dtype=object)[owners],
+            MetaColumns.from_table([c.meta for c in clips], owners, extra),
             names,
             projections=args.projections,
             seed=args.seed,

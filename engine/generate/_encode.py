@@ -3,19 +3,24 @@
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Sequence
+import logging
+from collections.abc import Callable, Sequence
 
 import numpy as np
 import torch
 from scipy.special import logsumexp
 
-from engine.errors import ConfigError
+from engine.errors import CancelledError, ConfigError
 from engine.generate._decode import as_codes
 from engine.modelio import LoadedModel
 from engine.motion.datasets import drop_extra_joints
 from engine.motion.motion import Motion
-from engine.motion.resample import resample_motion
+from engine.motion.resample import resample_motion, resampled_length
 from engine.train.windows import crop_windows, prepare_clips
+
+log = logging.getLogger(__name__)
+
+BANK_BATCH = 1024  # windows encoded together when building a bank: the memory bound beside the codes
 
 
 def conform(loaded: LoadedModel, motion: Motion) -> Motion:
@@ -103,10 +108,23 @@ def window_starts(n_frames: int, window: int, stride: int) -> np.ndarray:
     return np.unique(np.append(starts, last)).astype(np.int64)
 
 
+def _off_rate(loaded: LoadedModel, motion: Motion) -> bool:
+    """Whether ``motion`` must be resampled to the model's frame rate."""
+    return abs(motion.fps - loaded.fps) > 1e-6
+
+
 def _at_model_rate(loaded: LoadedModel, motion: Motion) -> Motion:
     """``motion`` on the model's skeleton at the model's frame rate."""
     moved = conform(loaded, motion)
-    return resample_motion(moved, loaded.fps) if abs(moved.fps - loaded.fps) > 1e-6 else moved
+    return resample_motion(moved, loaded.fps) if _off_rate(loaded, moved) else moved
+
+
+def _window_count(loaded: LoadedModel, motion: Motion, stride: int | None) -> int:
+    """Windows of ``motion`` in a bank (one without a stride), counted without resampling it."""
+    if stride is None:
+        return 1
+    frames = resampled_length(motion, loaded.fps) if _off_rate(loaded, motion) else motion.n_frames
+    return len(window_starts(frames, loaded.window, stride))
 
 
 def clip_windows(loaded: LoadedModel, motion: Motion, stride: int) -> tuple[np.ndarray, list[Motion]]:
@@ -129,18 +147,54 @@ def encode_windows(loaded: LoadedModel, motion: Motion, stride: int | None = Non
 
 
 def encode_bank_windows(
-    loaded: LoadedModel, clips: Sequence[Motion], stride: int
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Codes (N, D), ends (N, 3), clip index (N,) and first frame (N,) of every window of ``clips`` every
-    ``stride`` frames: a bank in which a long clip is a path of codes rather than one point."""
-    owners, starts, pieces = [], [], []
+    loaded: LoadedModel,
+    clips: Sequence[Motion],
+    stride: int | None,
+    *,
+    batch: int = BANK_BATCH,
+    progress: Callable[[int, int], None] | None = None,
+    cancel: Callable[[], bool] | None = None,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None]:
+    """Codes (N, D), ends (N, 3), clip index (N,) and first frame (N,; None without a stride) of the
+    windows of ``clips`` every ``stride`` frames (None: each clip's centre window), clip by clip and
+    ``batch`` windows at a time into preallocated arrays, so memory holds one batch beside the codes;
+    progress(windows done, windows in all) after each batch; CancelledError between batches."""
+    if batch < 1:
+        raise ConfigError(f"batch must be at least 1 window, got {batch}")
+    total = sum(_window_count(loaded, clip, stride) for clip in clips)
+    owners = np.empty(total, dtype=np.int64)
+    starts = np.zeros(total, dtype=np.int64)
+    codes = np.empty((total, loaded.config.latent_dim), dtype=np.float32)
+    ends = np.empty((total, 3), dtype=np.float32)
+    pending: list[Motion] = []
+    done = 0
+
+    def flush(count: int) -> None:
+        nonlocal done
+        if cancel is not None and cancel():
+            raise CancelledError(f"encoding cancelled after {done} of {total} windows")
+        codes[done : done + count], ends[done : done + count] = encode_clips(loaded, pending[:count])
+        del pending[:count]
+        done += count
+        if progress is not None:
+            progress(done, total)
+
+    queued = 0
     for k, clip in enumerate(clips):
-        first, windows = clip_windows(loaded, clip, stride)
-        owners += [k] * len(windows)
-        starts += [int(f) for f in first]
-        pieces += windows
-    codes, ends = encode_clips(loaded, pieces)
-    return codes, ends, np.array(owners, dtype=np.int64), np.array(starts, dtype=np.int64)
+        if stride is None:
+            pieces = [clip]
+        else:
+            first, pieces = clip_windows(loaded, clip, stride)
+            starts[queued : queued + len(pieces)] = first
+        owners[queued : queued + len(pieces)] = k
+        queued += len(pieces)
+        pending += pieces
+        while len(pending) >= batch:
+            flush(batch)
+    if pending:
+        flush(len(pending))
+    log.info("encoded %d windows of %d clips", total, len(clips))
+    return codes, ends, owners, None if stride is None else starts
 
 
 def bank_window(loaded: LoadedModel, clip: Motion, start: int | None = None) -> Motion:

@@ -17,7 +17,7 @@ from typing import TYPE_CHECKING, Any, Protocol, runtime_checkable
 
 import numpy as np
 
-from engine.errors import ConfigError, ModelFormatError
+from engine.errors import CancelledError, ConfigError, ModelFormatError
 
 if TYPE_CHECKING:
     from engine.generate import Sample, WindowCodes
@@ -142,19 +142,31 @@ class FolderGenerator:
         return [Sample(c, index, -1, None, m) for c, m in zip(codes, motions, strict=True)]
 
     def encode_bank(
-        self, clips: Sequence[Motion], stride: int | None = None
+        self,
+        clips: Sequence[Motion],
+        stride: int | None = None,
+        progress: Callable[[int, int], None] | None = None,
+        cancel: Callable[[], bool] | None = None,
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None]:
         """Codes (N, D), end locations (N, 3; zeros for kinds without), clip index (N,) and window start
-        (N,; None for one code per clip) of ``clips`` for a latent bank ("encode")."""
-        if stride is None:
-            codes = np.stack([self.encode(clip)[0] for clip in clips]).astype(np.float32)
-            owners, starts = np.arange(len(clips)), None
-        else:
-            rows = [self.encode_windows(clip, stride) for clip in clips]
-            codes = np.concatenate([r.codes for r in rows]).astype(np.float32)
-            owners = np.concatenate([np.full(len(r.codes), k) for k, r in enumerate(rows)])
-            starts = np.concatenate([r.starts for r in rows])
-        return codes, np.zeros((len(codes), 3), np.float32), owners.astype(np.int64), starts
+        (N,; None for one code per clip) of ``clips`` for a latent bank ("encode"), clip by clip;
+        progress(clips done, clips in all); CancelledError between clips."""
+        codes, starts = [], []
+        for k, clip in enumerate(clips):
+            if cancel is not None and cancel():
+                raise CancelledError(f"encoding cancelled after {k} of {len(clips)} clips")
+            if stride is None:
+                codes.append(self.encode(clip)[0][None])
+            else:
+                windows = self.encode_windows(clip, stride)
+                codes.append(windows.codes)
+                starts.append(windows.starts)
+            if progress is not None:
+                progress(k + 1, len(clips))
+        owners = np.concatenate([np.full(len(c), k, dtype=np.int64) for k, c in enumerate(codes)])
+        stacked = np.concatenate(codes).astype(np.float32)
+        first = np.concatenate(starts) if stride is not None else None
+        return stacked, np.zeros((len(stacked), 3), np.float32), owners, first
 
     @functools.cached_property
     def edit_directions(self) -> dict[str, EditDirection]:

@@ -303,12 +303,18 @@ class ModiGenerator(FolderGenerator):
         return bank_window(self.loaded, clip, start)
 
     def encode_bank(
-        self, clips: Sequence[Motion], stride: int | None = None
+        self,
+        clips: Sequence[Motion],
+        stride: int | None = None,
+        progress: Callable[[int, int], None] | None = None,
+        cancel: Callable[[], bool] | None = None,
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None]:
-        """W codes of ``clips``' centre windows, inverted together (a stride is refused: one per clip)."""
+        """W codes of ``clips``' centre windows, inverted together (a stride is refused: one per clip);
+        progress(optimisation steps done, steps in all)."""
         if stride is not None:
             raise ConfigError("a MoDi bank inverts one centre window per clip; drop --stride")
-        codes = invert_motions(self.loaded, clips, "W").codes
+        steps = None if progress is None else lambda done, total, _loss: progress(done, total)
+        codes = invert_motions(self.loaded, clips, "W", progress=steps, cancel=cancel).codes
         n = len(clips)
         return codes, np.zeros((n, 3), np.float32), np.arange(n, dtype=np.int64), None
 

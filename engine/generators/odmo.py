@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -78,13 +78,15 @@ class OdmoGenerator(FolderGenerator):
         return generate.encode(self.loaded, motion)
 
     def encode_bank(
-        self, clips: Sequence[Motion], stride: int | None = None
+        self,
+        clips: Sequence[Motion],
+        stride: int | None = None,
+        progress: Callable[[int, int], None] | None = None,
+        cancel: Callable[[], bool] | None = None,
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None]:
-        """Codes, end locations, clip index and window start of ``clips`` for a latent bank, in batches."""
-        if stride is None:
-            codes, ends = generate.encode_clips(self.loaded, clips)
-            return codes, ends, np.arange(len(clips), dtype=np.int64), None
-        return generate.encode_bank_windows(self.loaded, clips, stride)
+        """Codes, end locations, clip index and window start of ``clips`` for a latent bank, streamed in
+        batches of windows; progress(windows done, windows in all)."""
+        return generate.encode_bank_windows(self.loaded, clips, stride, progress=progress, cancel=cancel)
 
     def encode_windows(self, motion: Motion, stride: int) -> WindowCodes:
         """``motion``'s windows every ``stride`` frames, encoded in one batch, with their end locations."""

@@ -5,7 +5,7 @@ from __future__ import annotations
 import io
 import json
 import logging
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -14,6 +14,7 @@ import numpy as np
 
 from engine.errors import CancelledError, ConfigError, ModelFormatError
 from engine.fileio import atomic_write_bytes
+from engine.latent.columns import MetaColumns
 from engine.latent.geometry import NeighbourBlend
 from engine.latent.modes import ModeModel
 from engine.latent.projection import Projection, make_projection
@@ -23,7 +24,8 @@ from engine.npyio import load_npz
 log = logging.getLogger(__name__)
 
 FORMAT = "odmo-latent-bank"
-FORMAT_VERSION = 2  # 2: a map fitted on the bank's own codes stores no copy of them
+# 2: a map fitted on the bank's own codes stores no copy of them; 3: sources and meta stored as columns
+FORMAT_VERSION = 3
 
 
 @dataclass
@@ -33,8 +35,9 @@ class LatentBank:
     Attributes
     ----------
     codes : (N, D) float32; actions : (N,) int64 indices into ``action_names``.
-    ends : (N, 3) float32 end locations; sources : (N,) str clip names.
-    meta : N dicts of extra clip information (e.g. style), never used in training.
+    ends : (N, 3) float32 end locations; sources : (N,) object array of clip names (str, one per clip).
+    meta : N rows of extra clip information (e.g. style) as :class:`MetaColumns` (a list of dicts given is
+        turned into them); ``meta[i]`` is a dict; never used in training.
     modes : action index -> its modes (actions without codes have none).
     projections : "pca" | "tsne" | "umap" -> a fitted map of all N codes.
     weights_sha256 : checksum of the model weights the codes were encoded with ("" when unknown).
@@ -45,7 +48,7 @@ class LatentBank:
     action_names: list[str]
     ends: np.ndarray
     sources: np.ndarray
-    meta: list[dict[str, Any]]
+    meta: Sequence[dict[str, Any]]
     modes: dict[int, ModeModel] = field(default_factory=dict)
     projections: dict[str, Projection] = field(default_factory=dict)
     weights_sha256: str = ""
@@ -53,6 +56,11 @@ class LatentBank:
     _end_blends: dict[tuple[int, int], NeighbourBlend] = field(
         default_factory=dict, init=False, repr=False, compare=False
     )
+
+    def __post_init__(self) -> None:
+        """Hold sources as shared str objects and meta as columns, whatever sequences were given."""
+        self.sources = np.asarray(self.sources, dtype=object)
+        self.meta = MetaColumns.from_dicts(self.meta)
 
     def indices_of(self, action: int) -> np.ndarray:
         """(n,) indices of the codes of one action."""
@@ -92,8 +100,8 @@ class LatentBank:
             "actions": np.asarray(self.actions, dtype=np.int64),
             "action_names": np.asarray(self.action_names, dtype=np.str_),
             "ends": np.asarray(self.ends, dtype=np.float32),
-            "sources": np.asarray(self.sources, dtype=np.str_),
-            "meta": np.asarray([json.dumps(m, sort_keys=True) for m in self.meta], dtype=np.str_),
+            **_source_arrays(self.sources),
+            **MetaColumns.from_dicts(self.meta).to_arrays(),
             "mode_actions": np.asarray(sorted(self.modes), dtype=np.int64),
             "projection_names": np.asarray(sorted(self.projections), dtype=np.str_),
         }
@@ -155,13 +163,18 @@ class LatentBank:
         if version >= 2:
             shared = {f"projections/{n}/codes": arrays["codes"] for n in arrays["projection_names"]}
             arrays = shared | arrays
+        n = len(arrays["codes"])
+        if version >= 3:
+            sources, meta = _read_sources(arrays, n), MetaColumns.from_arrays(arrays, n)
+        else:
+            sources, meta = arrays["sources"], [json.loads(str(m)) for m in arrays["meta"]]
         bank = cls(
             codes=arrays["codes"],
             actions=arrays["actions"],
             action_names=[str(name) for name in arrays["action_names"]],
             ends=arrays["ends"],
-            sources=arrays["sources"],
-            meta=[json.loads(str(m)) for m in arrays["meta"]],
+            sources=sources,
+            meta=meta,
             modes={int(a): ModeModel.from_arrays(f"modes/{int(a)}/", arrays) for a in arrays["mode_actions"]},
             projections={
                 str(n): Projection.from_arrays(f"projections/{n}/", arrays)
@@ -171,6 +184,21 @@ class LatentBank:
         )
         _validate(bank, ModelFormatError)
         return bank
+
+
+def _source_arrays(sources: np.ndarray) -> dict[str, np.ndarray]:
+    """Sources (N,) as a file stores them: the distinct names and an (N,) int32 index into them."""
+    names, index = np.unique(np.asarray(sources, dtype=object), return_inverse=True)
+    return {"source_names": names.astype(np.str_), "source_index": index.astype(np.int32).reshape(-1)}
+
+
+def _read_sources(arrays: Mapping[str, np.ndarray], n: int) -> np.ndarray:
+    """Sources (N,) of a version-3 file; ModelFormatError when the index does not fit the names."""
+    names, index = arrays["source_names"], arrays["source_index"]
+    fits = index.shape == (n,) and index.dtype.kind in "iu"
+    if not fits or (n and not 0 <= index.min() <= index.max() < len(names)):
+        raise ModelFormatError(f"source_index must pick one of {len(names)} names for each of {n} codes")
+    return names.astype(object)[index]
 
 
 def _validate(bank: LatentBank, error: type[Exception]) -> None:
@@ -212,8 +240,8 @@ def build_bank(
     codes: np.ndarray,
     actions: np.ndarray,
     ends: np.ndarray,
-    sources: Sequence[str],
-    meta: Sequence[dict[str, Any]],
+    sources: Sequence[str] | np.ndarray,
+    meta: Sequence[Mapping[str, Any]],
     action_names: Sequence[str],
     *,
     k_range: tuple[int, int] = (3, 11),
@@ -230,8 +258,8 @@ def build_bank(
         actions=np.asarray(actions, dtype=np.int64),
         action_names=[str(name) for name in action_names],
         ends=np.asarray(ends, dtype=np.float32),
-        sources=np.asarray(list(sources), dtype=np.str_),
-        meta=[dict(m) for m in meta],
+        sources=sources if isinstance(sources, np.ndarray) else list(sources),
+        meta=meta,
     )
     _validate(bank, ConfigError)
     maps = {name: make_projection(name, seed=seed) for name in projections}

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import zipfile
 from collections.abc import Iterator
 from pathlib import Path
@@ -104,13 +105,23 @@ def test_maps_fitted_on_the_bank_codes_store_no_copy_and_version_1_files_still_l
     with np.load(saved, allow_pickle=False) as npz:
         assert not [key for key in npz.files if key.startswith("projections/") and key.endswith("/codes")]
     copies = {f"projections/{name}/codes": bank.codes for name in bank.projections}
-    old = rewritten(saved, tmp_path, version=np.asarray(1, dtype=np.int64), **copies)
+    rows = old_rows(bank)
+    old = rewritten(saved, tmp_path, version=np.asarray(1, dtype=np.int64), **copies, **rows)
     back = LatentBank.load(old)
     for name, projection in bank.projections.items():
         np.testing.assert_array_equal(back.projections[name].codes_, projection.codes_)
-    without = rewritten(saved, tmp_path, version=np.asarray(1, dtype=np.int64))
+    assert back.meta == bank.meta and list(back.sources) == list(bank.sources)
+    without = rewritten(saved, tmp_path, version=np.asarray(1, dtype=np.int64), **rows)
     with pytest.raises(ModelFormatError, match=r"projections/.*/codes"):
         LatentBank.load(without)  # version 1 kept the copies: a file without them is damaged
+
+
+def old_rows(bank: LatentBank) -> dict[str, np.ndarray]:
+    """Sources and meta as format versions 1 and 2 stored them: names and one JSON dict per row."""
+    return {
+        "sources": np.asarray(list(bank.sources), dtype=np.str_),
+        "meta": np.asarray([json.dumps(m, sort_keys=True) for m in bank.meta], dtype=np.str_),
+    }
 
 
 def rewritten(saved: Path, tmp_path: Path, **changes: np.ndarray | None) -> Path:
@@ -152,7 +163,7 @@ def test_load_refuses_bad_files(saved: Path, tmp_path: Path) -> None:
 def test_load_refuses_pickled_arrays(saved: Path, tmp_path: Path) -> None:
     with np.load(saved, allow_pickle=False) as npz:
         arrays = {key: npz[key] for key in npz.files}
-    arrays["meta"] = np.array([{"style": "x"}] * len(arrays["meta"]), dtype=object)
+    arrays["meta/style/values"] = np.array([{"style": "x"}] * 2, dtype=object)
     path = tmp_path / "pickled.npz"
     np.savez(path, **arrays)
     assert zipfile.is_zipfile(path)
