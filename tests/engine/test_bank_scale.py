@@ -1,0 +1,172 @@
+"""Banks at scale: streamed encoding in batches (same codes, bounded memory, progress, cancel) and the
+columnar bank format 3 (round trip, damaged files, version 2 files still load)."""
+
+from __future__ import annotations
+
+import json
+import tracemalloc
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from engine.errors import CancelledError, ModelFormatError
+from engine.generate import encode_bank_windows, encode_clips, encode_windows
+from engine.latent.bank import FORMAT_VERSION, LatentBank, build_bank
+from engine.latent.columns import MetaColumns
+from engine.modelio import LoadedModel, load_model
+from engine.motion.motion import Motion
+from tests.fixtures.procedural import make_procedural_clips
+from tests.fixtures.tiny_model import single_thread
+
+BUNDLED = sorted(Path(__file__).resolve().parents[2].glob("resources/models/*/latent_bank.npz"))
+
+
+@pytest.fixture(scope="module")
+def loaded(tiny_model_dir: Path) -> LoadedModel:
+    return load_model(tiny_model_dir, with_bank=False)
+
+
+def test_streamed_codes_equal_the_one_clip_at_a_time_codes(
+    loaded: LoadedModel, procedural_clips: list[Motion]
+) -> None:
+    with single_thread():
+        codes, ends, owners, starts = encode_bank_windows(loaded, procedural_clips, 10, batch=7)
+        whole = [encode_windows(loaded, clip, 10) for clip in procedural_clips]
+        centre_codes, centre_ends, centre_owners, none = encode_bank_windows(
+            loaded, procedural_clips, None, batch=5
+        )
+        expected_centres = encode_clips(loaded, procedural_clips)
+    np.testing.assert_allclose(codes, np.concatenate([w.codes for w in whole]), atol=1e-6)
+    np.testing.assert_allclose(ends, np.concatenate([w.ends for w in whole]), atol=1e-6)
+    np.testing.assert_array_equal(
+        owners, np.concatenate([np.full(len(w.codes), k) for k, w in enumerate(whole)])
+    )
+    np.testing.assert_array_equal(starts, np.concatenate([w.starts for w in whole]))
+    np.testing.assert_allclose(centre_codes, expected_centres[0], atol=1e-6)
+    np.testing.assert_allclose(centre_ends, expected_centres[1], atol=1e-6)
+    np.testing.assert_array_equal(centre_owners, np.arange(len(procedural_clips)))
+    assert none is None and len(codes) > 2 * len(procedural_clips)
+
+
+def test_progress_counts_windows_and_cancel_stops_between_batches(
+    loaded: LoadedModel, procedural_clips: list[Motion]
+) -> None:
+    reports: list[tuple[int, int]] = []
+    cancelled: list[tuple[int, int]] = []
+    with single_thread():
+        codes, *_ = encode_bank_windows(
+            loaded, procedural_clips, 10, batch=50, progress=lambda d, t: reports.append((d, t))
+        )
+        with pytest.raises(CancelledError, match=r"after 100 of \d+ windows"):
+            encode_bank_windows(
+                loaded,
+                procedural_clips,
+                10,
+                batch=50,
+                progress=lambda d, t: cancelled.append((d, t)),
+                cancel=lambda: len(cancelled) == 2,
+            )
+    n = len(codes)
+    assert reports == [(d, n) for d in [*range(50, n, 50), n]]
+    assert cancelled == [(50, n), (100, n)]
+
+
+def _peak_bytes(loaded: LoadedModel, clips: list[Motion]) -> tuple[int, int]:
+    """Peak traced bytes of a streamed encoding of ``clips`` (batches of 32 windows) and its window count."""
+    tracemalloc.start()
+    try:
+        codes, *_ = encode_bank_windows(loaded, clips, 5, batch=32)
+        return tracemalloc.get_traced_memory()[1], len(codes)
+    finally:
+        tracemalloc.stop()
+
+
+def test_streamed_memory_grows_with_the_codes_not_the_clips(loaded: LoadedModel) -> None:
+    few, many = make_procedural_clips(n_per_style=2, seed=3), make_procedural_clips(n_per_style=8, seed=3)
+    with single_thread():
+        _peak_bytes(loaded, few)  # imports and caches
+        small, n_small = _peak_bytes(loaded, few)
+        large, n_large = _peak_bytes(loaded, many)
+    per_window = 8 * (loaded.config.latent_dim + 3 + 4)  # codes, ends, owner, start: the output rows
+    assert n_large > 3 * n_small
+    # All windows at once held each window's T x J x 3 floats several times over (about 8 kB each here).
+    assert large - small < 2 * per_window * (n_large - n_small) + 200_000, (small, large, n_small, n_large)
+
+
+def _columnar_bank(n_clips: int = 6, per_clip: int = 5) -> LatentBank:
+    """A bank of ``n_clips`` clips' windows with mixed metadata (text, numbers, lists, a missing key)."""
+    rng = np.random.default_rng(0)
+    table = [{"style": ["calm", "wild"][k % 2], "take": k, "tags": [k, "x"]} for k in range(n_clips)]
+    table[2].pop("style")
+    owners = np.repeat(np.arange(n_clips), per_clip)
+    starts = np.tile(np.arange(per_clip) * 10, n_clips)
+    meta = MetaColumns.from_table(table, owners, {"window_start": starts})
+    n = len(owners)
+    return build_bank(
+        rng.normal(size=(n, 4)).astype(np.float32),
+        owners % 2,
+        rng.normal(size=(n, 3)).astype(np.float32),
+        np.asarray([f"clips/take_{k}.bvh" for k in range(n_clips)], dtype=object)[owners],
+        meta,
+        ["walk", "run"],
+        k_range=(1, 2),
+        projections=("pca",),
+    )
+
+
+def test_format_3_round_trip_keeps_every_row(tmp_path: Path) -> None:
+    bank = _columnar_bank()
+    path = tmp_path / "bank.npz"
+    bank.save(path)
+    back = LatentBank.load(path)
+    assert back.meta[7] == {"style": "wild", "take": 1, "tags": [1, "x"], "window_start": 20}
+    assert back.meta[12] == {"take": 2, "tags": [2, "x"], "window_start": 20}  # no style: none made up
+    assert back.meta == bank.meta and list(back.meta) == [bank.meta[i] for i in range(len(bank.meta))]
+    assert back.sources[7] == "clips/take_1.bvh" and list(back.sources) == list(bank.sources)
+    np.testing.assert_array_equal(back.codes, bank.codes)
+    np.testing.assert_array_equal(back.windows_of(12), np.arange(10, 15))
+    with np.load(path, allow_pickle=False) as npz:
+        assert int(npz["version"]) == FORMAT_VERSION == 3
+        assert "meta" not in npz.files and "sources" not in npz.files
+        assert npz["source_names"].shape == (6,) and npz["meta/window_start/values"].shape == (5,)
+        assert npz["meta/style/index"].dtype == np.int32 and npz["meta/style/index"][12] == -1
+
+
+def _damaged(path: Path, tmp_path: Path, **changes: np.ndarray | None) -> Path:
+    """A copy of the bank file with arrays replaced (None: removed)."""
+    with np.load(path, allow_pickle=False) as npz:
+        arrays = {key: npz[key] for key in npz.files}
+    for key, value in changes.items():
+        arrays.pop(key) if value is None else arrays.__setitem__(key, value)
+    out = tmp_path / "damaged.npz"
+    np.savez(out, **arrays)
+    return out
+
+
+def test_damaged_columns_are_refused_naming_the_file(tmp_path: Path) -> None:
+    path = tmp_path / "bank.npz"
+    _columnar_bank().save(path)
+    n = 30
+    cases = {
+        "source_index": {"source_index": np.full(n, 6, dtype=np.int32)},
+        "meta/style/index": {"meta/style/index": None},
+        "indexes past": {"meta/take/index": np.full(n, 9, dtype=np.int32)},
+        "must index": {"meta/take/index": np.zeros(n - 1, dtype=np.int32)},
+        "malformed": {"meta/take/values": np.asarray(["{not json"] * 6)},
+    }
+    for message, changes in cases.items():
+        with pytest.raises(ModelFormatError, match=message) as caught:
+            LatentBank.load(_damaged(path, tmp_path, **changes))
+        assert "damaged.npz" in str(caught.value)
+
+
+@pytest.mark.parametrize("path", BUNDLED, ids=[p.parent.name for p in BUNDLED])
+def test_bundled_version_2_banks_load_row_for_row(path: Path) -> None:
+    with np.load(path, allow_pickle=False) as npz:
+        if int(npz["version"]) > 2:
+            pytest.skip(f"{path.parent.name}'s bank was rebuilt in format {int(npz['version'])}")
+        sources, rows = npz["sources"], [json.loads(str(m)) for m in npz["meta"]]
+    bank = LatentBank.load(path)
+    assert list(bank.sources) == sources.tolist() and len(bank.meta) == len(rows)
+    assert list(bank.meta) == rows and bank.meta[len(rows) // 2] == rows[len(rows) // 2]
