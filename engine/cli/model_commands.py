@@ -247,27 +247,27 @@ def _bank_locked(args: argparse.Namespace) -> int:
     from engine.latent.bank import build_bank
     from engine.latent.columns import MetaColumns
     from engine.modelio import save_bank
+    from engine.motion.datasets import open_folder
 
     loaded = open_generator(args.model, with_bank=False)  # a damaged bank must not stop its rebuild
     require(loaded, "encode", "build a latent bank (it cannot encode clips into codes)")
     names = loaded.label_names
-    dataset = _dataset(args)
-    unknown = sorted({c.action for c in dataset.clips} - set(names))
+    clips = open_folder(args.data, pattern=args.pattern, labels=args.labels, up_axis=args.up_axis)
+    labels = [clips.label(k) for k in range(len(clips))]
+    unknown = sorted({action for action, _ in labels} - set(names))
     if unknown:
         raise DataError(f"{args.data}: actions {unknown} are not the model's {names}")
-    clips = dataset.clips
-    with tqdm(total=0, unit="window", desc="encoding", file=sys.stderr) as bar:
+    with tqdm(total=0, unit="window", desc="encoding (reading clips one at a time)", file=sys.stderr) as bar:
 
         def encoded(done: int, total: int) -> None:
             bar.total = total
             bar.update(done - bar.n)
 
         codes, ends, owners, starts = loaded.encode_bank(clips, args.stride, progress=encoded)
-    # One entry per clip, indexed by each code's clip: no dict or name string per window.
+    # One label per clip, indexed by each code's clip: no dict or name string per window.
     extra = {}
     if starts is not None:
         extra = {"window_stride": np.full(len(starts), args.stride), "window_start": starts}
-    sources = [str(c.meta.get("source", c.meta.get("path", i))) for i, c in enumerate(clips)]
     progress = tqdm(total=1.0, bar_format=_BAR, file=sys.stderr)
     try:
 
@@ -277,10 +277,10 @@ def _bank_locked(args: argparse.Namespace) -> int:
 
         bank = build_bank(
             codes,
-            np.array([names.index(c.action) for c in clips], dtype=np.int64)[owners],
+            np.array([names.index(action) for action, _ in labels], dtype=np.int64)[owners],
             ends,
-            np.asarray(sources, dtype=object)[owners],
-            MetaColumns.from_table([c.meta for c in clips], owners, extra),
+            np.asarray([meta["source"] for _, meta in labels], dtype=object)[owners],
+            MetaColumns.from_table([meta for _, meta in labels], owners, extra),
             names,
             projections=args.projections,
             seed=args.seed,

@@ -9,6 +9,7 @@ from engine.generate._across import interpolate_across, step_actions
 from engine.generate._chain import apply_transform, chain_motions, chain_transforms
 from engine.generate._decode import action_index, decode, decode_array, decode_batch, resolve_ends
 from engine.generate._encode import (
+    BANK_BATCH,
     WindowCodes,
     bank_window,
     clip_windows,
@@ -31,6 +32,7 @@ from engine.generate._sampling import (
 
 __all__ = [
     "ACROSS_RULE",
+    "BANK_BATCH",
     "PathResult",
     "Sample",
     "WindowCodes",

@@ -15,12 +15,12 @@ from engine.generate._decode import as_codes
 from engine.modelio import LoadedModel
 from engine.motion.datasets import drop_extra_joints
 from engine.motion.motion import Motion
-from engine.motion.resample import resample_motion, resampled_length
+from engine.motion.resample import resample_motion
 from engine.train.windows import crop_windows, prepare_clips
 
 log = logging.getLogger(__name__)
 
-BANK_BATCH = 1024  # windows encoded together when building a bank: the memory bound beside the codes
+BANK_BATCH = 256  # windows encoded together when building a bank: the memory bound beside the codes
 
 
 def conform(loaded: LoadedModel, motion: Motion) -> Motion:
@@ -108,23 +108,10 @@ def window_starts(n_frames: int, window: int, stride: int) -> np.ndarray:
     return np.unique(np.append(starts, last)).astype(np.int64)
 
 
-def _off_rate(loaded: LoadedModel, motion: Motion) -> bool:
-    """Whether ``motion`` must be resampled to the model's frame rate."""
-    return abs(motion.fps - loaded.fps) > 1e-6
-
-
 def _at_model_rate(loaded: LoadedModel, motion: Motion) -> Motion:
     """``motion`` on the model's skeleton at the model's frame rate."""
     moved = conform(loaded, motion)
-    return resample_motion(moved, loaded.fps) if _off_rate(loaded, moved) else moved
-
-
-def _window_count(loaded: LoadedModel, motion: Motion, stride: int | None) -> int:
-    """Windows of ``motion`` in a bank (one without a stride), counted without resampling it."""
-    if stride is None:
-        return 1
-    frames = resampled_length(motion, loaded.fps) if _off_rate(loaded, motion) else motion.n_frames
-    return len(window_starts(frames, loaded.window, stride))
+    return resample_motion(moved, loaded.fps) if abs(moved.fps - loaded.fps) > 1e-6 else moved
 
 
 def clip_windows(loaded: LoadedModel, motion: Motion, stride: int) -> tuple[np.ndarray, list[Motion]]:
@@ -156,45 +143,49 @@ def encode_bank_windows(
     cancel: Callable[[], bool] | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None]:
     """Codes (N, D), ends (N, 3), clip index (N,) and first frame (N,; None without a stride) of the
-    windows of ``clips`` every ``stride`` frames (None: each clip's centre window), clip by clip and
-    ``batch`` windows at a time into preallocated arrays, so memory holds one batch beside the codes;
-    progress(windows done, windows in all) after each batch; CancelledError between batches."""
+    windows of ``clips`` every ``stride`` frames (None: each clip's centre window), taking one clip at a
+    time (each read once: ``clips`` may read them from disk) and encoding ``batch`` windows at a time, so
+    memory holds one batch and one clip beside the codes. progress(windows done, windows in all) after
+    each batch, the total estimated from the clips seen until the last; CancelledError between batches."""
     if batch < 1:
         raise ConfigError(f"batch must be at least 1 window, got {batch}")
-    total = sum(_window_count(loaded, clip, stride) for clip in clips)
-    owners = np.empty(total, dtype=np.int64)
-    starts = np.zeros(total, dtype=np.int64)
-    codes = np.empty((total, loaded.config.latent_dim), dtype=np.float32)
-    ends = np.empty((total, 3), dtype=np.float32)
     pending: list[Motion] = []
-    done = 0
+    codes: list[np.ndarray] = []
+    ends: list[np.ndarray] = []
+    owners: list[np.ndarray] = []
+    starts: list[np.ndarray] = []
+    done = queued = seen = 0
 
     def flush(count: int) -> None:
         nonlocal done
         if cancel is not None and cancel():
-            raise CancelledError(f"encoding cancelled after {done} of {total} windows")
-        codes[done : done + count], ends[done : done + count] = encode_clips(loaded, pending[:count])
+            raise CancelledError(f"encoding cancelled after {done} windows of {seen} of {len(clips)} clips")
+        batch_codes, batch_ends = encode_clips(loaded, pending[:count])
+        codes.append(batch_codes)
+        ends.append(batch_ends)
         del pending[:count]
         done += count
         if progress is not None:
-            progress(done, total)
+            progress(done, max(queued, round(queued * len(clips) / seen)))
 
-    queued = 0
     for k, clip in enumerate(clips):
         if stride is None:
             pieces = [clip]
         else:
             first, pieces = clip_windows(loaded, clip, stride)
-            starts[queued : queued + len(pieces)] = first
-        owners[queued : queued + len(pieces)] = k
-        queued += len(pieces)
+            starts.append(first)
+        owners.append(np.full(len(pieces), k, dtype=np.int64))
         pending += pieces
+        queued, seen = queued + len(pieces), k + 1
         while len(pending) >= batch:
             flush(batch)
     if pending:
         flush(len(pending))
-    log.info("encoded %d windows of %d clips", total, len(clips))
-    return codes, ends, owners, None if stride is None else starts
+    if not codes:
+        raise ConfigError("no clips to encode")
+    log.info("encoded %d windows of %d clips", done, len(clips))
+    first_frames = np.concatenate(starts).astype(np.int64) if stride is not None else None
+    return np.concatenate(codes), np.concatenate(ends), np.concatenate(owners), first_frames
 
 
 def bank_window(loaded: LoadedModel, clip: Motion, start: int | None = None) -> Motion:

@@ -109,27 +109,9 @@ def load_folder(
 ) -> Dataset:
     """Load the labelled clips of a dataset folder (Bandai-Namco, HumanAct12 or pattern/sidecar labels);
     ``up_axis`` is the files' up axis (they are turned Y-up)."""
-    root = Path(path).expanduser().resolve()
-    if not root.is_dir():
-        raise DataError(f"{root}: not a folder")
     if on_error not in ("raise", "skip"):
         raise ConfigError(f"on_error must be 'raise' or 'skip', got {on_error!r}")
-    if limit is not None:
-        limit = max(0, int(limit))
-    if _is_bandai(root) and pattern is None and labels is None:
-        layout, (entries, action_names) = "bandai", _bandai_entries(root, limit)
-        drop = BANDAI_DROP_JOINTS if drop_joints is None else tuple(drop_joints)
-    else:
-        layout, (entries, action_names) = "generic", _generic_entries(root, pattern, labels)
-        drop = () if drop_joints is None else tuple(drop_joints)
-    entries = entries[:limit]
-    if not entries:
-        hint = (
-            "" if pattern or labels else " (name the label with --pattern '(?P<action>...)' or --labels FILE)"
-        )
-        raise DataError(f"{root}: no labelled clips{hint}")
-
-    check_up_axis(up_axis)
+    root, layout, entries, action_names, drop = _scan(path, pattern, labels, limit, drop_joints, up_axis)
     store = _Cache(root, drop, up_axis) if cache else None
     clips: list[Motion] = []
     skipped: list[str] = []
@@ -138,16 +120,14 @@ def load_folder(
         if cancel is not None and cancel():
             raise CancelledError(f"loading {root} cancelled after {i} of {len(entries)} clips")
         try:
-            digest, motion = _load_clip(entry, store, drop, up_axis)
-        except OdmoError as exc:
-            named = str(exc) if str(exc).startswith(str(entry.path)) else f"{entry.path}: {exc}"
+            digest, motion = _read_entry(entry, root, store, drop, up_axis)
+        except DataError as exc:
             if on_error == "raise":
-                raise DataError(named) from None
-            log.warning("skipping %s", named)
+                raise
+            log.warning("skipping %s", exc)
             skipped.append(str(entry.path))
             continue
-        source = entry.path.relative_to(root).as_posix()
-        motion.meta["source"] = source
+        source = motion.meta["source"]
         if clips and not motion.skeleton.same_topology(clips[0].skeleton):
             raise DataError(f"{entry.path}: skeleton differs from {clips[0].meta['source']}")
         clips.append(motion)
@@ -164,6 +144,92 @@ def load_folder(
     fingerprint = hashlib.sha256("\n".join([layout, *drop, *digests]).encode()).hexdigest()[:32]
     log.info("loaded %d clips (%d actions) from %s", len(clips), len(action_names), root)
     return Dataset(clips, action_names, root, fingerprint, clips[0].skeleton, layout, skipped)
+
+
+@dataclass(frozen=True, eq=False)
+class FolderClips(Sequence[Motion]):
+    """The labelled clips of a dataset folder read one at a time: ``clips[k]`` parses file k when asked
+    (no parse cache: nothing of the folder stays in memory), a DataError naming the file if it cannot.
+
+    Parameters
+    ----------
+    root : the folder; entries : its labelled clip files in order.
+    action_names : the actions, in the folder's id order (Bandai) or sorted.
+    drop : joints left out of every clip; up_axis : the files' up axis.
+    """
+
+    root: Path
+    entries: list[_Entry]
+    action_names: list[str]
+    drop: tuple[str, ...]
+    up_axis: str
+
+    def __len__(self) -> int:
+        """Number of clips."""
+        return len(self.entries)
+
+    def __getitem__(self, k: int) -> Motion:  # type: ignore[override]
+        """Clip ``k``, read from its file, with ``meta["source"]``."""
+        return _read_entry(self.entries[k], self.root, None, self.drop, self.up_axis)[1]
+
+    def label(self, k: int) -> tuple[str, dict[str, Any]]:
+        """The action and metadata (labels and ``source``) clip ``k`` has, known without reading it."""
+        entry = self.entries[k]
+        return entry.action, dict(entry.meta) | {"source": entry.path.relative_to(self.root).as_posix()}
+
+
+def open_folder(
+    path: str | Path, pattern: str | None = None, labels: str | Path | None = None, up_axis: str = "y"
+) -> FolderClips:
+    """The labelled clips of a dataset folder (as :func:`load_folder` finds them), read when asked for."""
+    root, layout, entries, action_names, drop = _scan(path, pattern, labels, None, None, up_axis)
+    if layout == "generic":
+        action_names = sorted({entry.action for entry in entries})
+    return FolderClips(root, entries, action_names, drop, up_axis)
+
+
+def _scan(
+    path: str | Path,
+    pattern: str | None,
+    labels: str | Path | None,
+    limit: int | None,
+    drop_joints: Sequence[str] | None,
+    up_axis: str,
+) -> tuple[Path, str, list[_Entry], list[str], tuple[str, ...]]:
+    """The folder, its layout, its labelled clip files (at most ``limit``), action names and the joints
+    to drop; DataError for a folder that is missing or has no labelled clip."""
+    root = Path(path).expanduser().resolve()
+    if not root.is_dir():
+        raise DataError(f"{root}: not a folder")
+    if limit is not None:
+        limit = max(0, int(limit))
+    if _is_bandai(root) and pattern is None and labels is None:
+        layout, (entries, action_names) = "bandai", _bandai_entries(root, limit)
+        drop = BANDAI_DROP_JOINTS if drop_joints is None else tuple(drop_joints)
+    else:
+        layout, (entries, action_names) = "generic", _generic_entries(root, pattern, labels)
+        drop = () if drop_joints is None else tuple(drop_joints)
+    entries = entries[:limit]
+    if not entries:
+        hint = (
+            "" if pattern or labels else " (name the label with --pattern '(?P<action>...)' or --labels FILE)"
+        )
+        raise DataError(f"{root}: no labelled clips{hint}")
+    check_up_axis(up_axis)
+    return root, layout, entries, action_names, drop
+
+
+def _read_entry(
+    entry: _Entry, root: Path, store: _Cache | None, drop: Sequence[str], up_axis: str
+) -> tuple[str, Motion]:
+    """(content hash, clip with ``meta["source"]``) of one file; DataError naming it when unreadable."""
+    try:
+        digest, motion = _load_clip(entry, store, drop, up_axis)
+    except OdmoError as exc:
+        named = str(exc) if str(exc).startswith(str(entry.path)) else f"{entry.path}: {exc}"
+        raise DataError(named) from None
+    motion.meta["source"] = entry.path.relative_to(root).as_posix()
+    return digest, motion
 
 
 def cache_dir() -> Path:

@@ -11,11 +11,6 @@ from engine.errors import ConfigError
 from engine.motion.motion import Motion
 
 
-def resampled_length(motion: Motion, fps: float) -> int:
-    """Frames of ``motion`` sampled at ``fps`` over the same duration: ``round(duration * fps) + 1``."""
-    return round(motion.duration * float(fps)) + 1
-
-
 def resample_motion(motion: Motion, fps: float) -> Motion:
     """``motion`` sampled at ``fps`` over the same duration.
 
@@ -26,7 +21,7 @@ def resample_motion(motion: Motion, fps: float) -> Motion:
     fps = float(fps)
     if not (np.isfinite(fps) and fps > 0):
         raise ConfigError(f"fps must be a positive number, got {fps}")
-    n_new = resampled_length(motion, fps)
+    n_new = round(motion.duration * fps) + 1
     src = np.minimum(np.arange(n_new) / fps, motion.duration) * motion.fps
     lo = np.minimum(np.floor(src).astype(np.int64), motion.n_frames - 1)
     hi = np.minimum(lo + 1, motion.n_frames - 1)

@@ -4,17 +4,20 @@ columnar bank format 3 (round trip, damaged files, version 2 files still load)."
 from __future__ import annotations
 
 import json
+import re
+import shutil
 import tracemalloc
 from pathlib import Path
 
 import numpy as np
 import pytest
 
-from engine.errors import CancelledError, ModelFormatError
+from engine.errors import CancelledError, DataError, ModelFormatError
 from engine.generate import encode_bank_windows, encode_clips, encode_windows
 from engine.latent.bank import FORMAT_VERSION, LatentBank, build_bank
 from engine.latent.columns import MetaColumns
 from engine.modelio import LoadedModel, load_model
+from engine.motion.datasets import load_folder, open_folder
 from engine.motion.motion import Motion
 from tests.fixtures.procedural import make_procedural_clips
 from tests.fixtures.tiny_model import single_thread
@@ -58,7 +61,7 @@ def test_progress_counts_windows_and_cancel_stops_between_batches(
         codes, *_ = encode_bank_windows(
             loaded, procedural_clips, 10, batch=50, progress=lambda d, t: reports.append((d, t))
         )
-        with pytest.raises(CancelledError, match=r"after 100 of \d+ windows"):
+        with pytest.raises(CancelledError, match=r"after 100 windows of \d+ of 72 clips"):
             encode_bank_windows(
                 loaded,
                 procedural_clips,
@@ -68,8 +71,9 @@ def test_progress_counts_windows_and_cancel_stops_between_batches(
                 cancel=lambda: len(cancelled) == 2,
             )
     n = len(codes)
-    assert reports == [(d, n) for d in [*range(50, n, 50), n]]
-    assert cancelled == [(50, n), (100, n)]
+    assert [d for d, _ in reports] == [*range(50, n, 50), n] and reports[-1] == (n, n)
+    assert all(d <= t for d, t in reports) and 0.8 * n < reports[0][1] < 1.25 * n  # estimated from clips seen
+    assert [d for d, _ in cancelled] == [50, 100]
 
 
 def _peak_bytes(loaded: LoadedModel, clips: list[Motion]) -> tuple[int, int]:
@@ -170,3 +174,25 @@ def test_bundled_version_2_banks_load_row_for_row(path: Path) -> None:
     bank = LatentBank.load(path)
     assert list(bank.sources) == sources.tolist() and len(bank.meta) == len(rows)
     assert list(bank.meta) == rows and bank.meta[len(rows) // 2] == rows[len(rows) // 2]
+
+
+def test_folder_clips_are_read_one_at_a_time_as_load_folder_reads_them(
+    procedural_npz_dir: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setenv("ODMO_CACHE_DIR", str(tmp_path / "cache"))
+    pattern = r"^(?P<action>[a-z]+)_(?P<style>[a-z-]+)_\d+"
+    loaded_all = load_folder(procedural_npz_dir, pattern=pattern)
+    lazy = open_folder(procedural_npz_dir, pattern=pattern)
+    assert len(lazy) == len(loaded_all) and lazy.action_names == loaded_all.action_names
+    for k in (0, 31, len(lazy) - 1):
+        clip, expected = lazy[k], loaded_all.clips[k]
+        np.testing.assert_array_equal(clip.joints, expected.joints)
+        assert (clip.action, clip.meta) == (expected.action, expected.meta) == lazy.label(k)
+    folder = tmp_path / "some bad"
+    shutil.copytree(procedural_npz_dir, folder)
+    bad = sorted(folder.iterdir())[3]
+    bad.write_bytes(b"not an npz")
+    damaged = open_folder(folder, pattern=pattern)  # nothing is read until asked for
+    assert damaged[2].n_frames > 0 and damaged.label(3)[1]["source"] == bad.name
+    with pytest.raises(DataError, match=re.escape(bad.name)):
+        damaged[3]
