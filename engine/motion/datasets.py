@@ -148,14 +148,16 @@ def load_folder(
 
 @dataclass(frozen=True, eq=False)
 class FolderClips(Sequence[Motion]):
-    """The labelled clips of a dataset folder read one at a time: ``clips[k]`` parses file k when asked
-    (no parse cache: nothing of the folder stays in memory), a DataError naming the file if it cannot.
+    """The labelled clips of a dataset folder read one at a time: ``clips[k]`` is file k, from the
+    folder's parse cache when it has one (read-only: at most ``ODMO_MAX_FILE_MB``, the cache file's size
+    limit) or parsed when asked for and not kept; a DataError naming the file if it cannot be read.
 
     Parameters
     ----------
     root : the folder; entries : its labelled clip files in order.
     action_names : the actions, in the folder's id order (Bandai) or sorted.
     drop : joints left out of every clip; up_axis : the files' up axis.
+    store : the folder's parse cache, read-only (None: parse every file).
     """
 
     root: Path
@@ -163,6 +165,7 @@ class FolderClips(Sequence[Motion]):
     action_names: list[str]
     drop: tuple[str, ...]
     up_axis: str
+    store: _Cache | None = None
 
     def __len__(self) -> int:
         """Number of clips."""
@@ -170,7 +173,7 @@ class FolderClips(Sequence[Motion]):
 
     def __getitem__(self, k: int) -> Motion:  # type: ignore[override]
         """Clip ``k``, read from its file, with ``meta["source"]``."""
-        return _read_entry(self.entries[k], self.root, None, self.drop, self.up_axis)[1]
+        return _read_entry(self.entries[k], self.root, self.store, self.drop, self.up_axis)[1]
 
     def label(self, k: int) -> tuple[str, dict[str, Any]]:
         """The action and metadata (labels and ``source``) clip ``k`` has, known without reading it."""
@@ -179,13 +182,19 @@ class FolderClips(Sequence[Motion]):
 
 
 def open_folder(
-    path: str | Path, pattern: str | None = None, labels: str | Path | None = None, up_axis: str = "y"
+    path: str | Path,
+    pattern: str | None = None,
+    labels: str | Path | None = None,
+    up_axis: str = "y",
+    cache: bool = True,
 ) -> FolderClips:
-    """The labelled clips of a dataset folder (as :func:`load_folder` finds them), read when asked for."""
+    """The labelled clips of a dataset folder (as :func:`load_folder` finds them), read when asked for,
+    through the folder's parse cache when ``cache`` and it has one."""
     root, layout, entries, action_names, drop = _scan(path, pattern, labels, None, None, up_axis)
     if layout == "generic":
         action_names = sorted({entry.action for entry in entries})
-    return FolderClips(root, entries, action_names, drop, up_axis)
+    store = _Cache(root, drop, up_axis, read_only=True) if cache else None
+    return FolderClips(root, entries, action_names, drop, up_axis, store if store and store.entries else None)
 
 
 def _scan(
@@ -395,9 +404,11 @@ _Parsed = tuple[np.ndarray, float, Skeleton]
 
 
 class _Cache:
-    """Parsed clips (joints, fps, skeleton) of one folder by content hash, in one NPZ file (no pickles)."""
+    """Parsed clips (joints, fps, skeleton) of one folder by content hash, in one NPZ file (no pickles);
+    ``read_only``: clips parsed afresh are not kept."""
 
-    def __init__(self, root: Path, drop: Sequence[str], up_axis: str) -> None:
+    def __init__(self, root: Path, drop: Sequence[str], up_axis: str, read_only: bool = False) -> None:
+        self.read_only = read_only
         turned = [f"up_axis={up_axis}"] if up_axis != "y" else []  # Y-up keys predate the option
         key = "\n".join([str(root), str(CACHE_VERSION), *drop, *turned])
         key = hashlib.sha1(key.encode()).hexdigest()[:16]
@@ -427,7 +438,9 @@ class _Cache:
         return self.entries.get(digest)
 
     def put(self, digest: str, parsed: _Parsed) -> None:
-        """Remember a freshly parsed clip."""
+        """Remember a freshly parsed clip (unless read-only)."""
+        if self.read_only:
+            return
         self.entries[digest] = parsed
         self.dirty = True
 

@@ -182,12 +182,14 @@ def test_folder_clips_are_read_one_at_a_time_as_load_folder_reads_them(
     monkeypatch.setenv("ODMO_CACHE_DIR", str(tmp_path / "cache"))
     pattern = r"^(?P<action>[a-z]+)_(?P<style>[a-z-]+)_\d+"
     loaded_all = load_folder(procedural_npz_dir, pattern=pattern)
-    lazy = open_folder(procedural_npz_dir, pattern=pattern)
+    lazy = open_folder(procedural_npz_dir, pattern=pattern)  # through the cache load_folder wrote
+    parsed = open_folder(procedural_npz_dir, pattern=pattern, cache=False)
+    assert lazy.store is not None and parsed.store is None
     assert len(lazy) == len(loaded_all) and lazy.action_names == loaded_all.action_names
     for k in (0, 31, len(lazy) - 1):
-        clip, expected = lazy[k], loaded_all.clips[k]
-        np.testing.assert_array_equal(clip.joints, expected.joints)
-        assert (clip.action, clip.meta) == (expected.action, expected.meta) == lazy.label(k)
+        for clip, expected in ((lazy[k], loaded_all.clips[k]), (parsed[k], loaded_all.clips[k])):
+            np.testing.assert_array_equal(clip.joints, expected.joints)
+            assert (clip.action, clip.meta) == (expected.action, expected.meta) == lazy.label(k)
     folder = tmp_path / "some bad"
     shutil.copytree(procedural_npz_dir, folder)
     bad = sorted(folder.iterdir())[3]
