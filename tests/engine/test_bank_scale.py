@@ -12,7 +12,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from engine import cli
 from engine.errors import CancelledError, DataError, ModelFormatError
+from engine.fileio import LOCK_FILE
 from engine.generate import encode_bank_windows, encode_clips, encode_windows
 from engine.latent.bank import FORMAT_VERSION, LatentBank, build_bank
 from engine.latent.columns import MetaColumns
@@ -198,3 +200,27 @@ def test_folder_clips_are_read_one_at_a_time_as_load_folder_reads_them(
     assert damaged[2].n_frames > 0 and damaged.label(3)[1]["source"] == bad.name
     with pytest.raises(DataError, match=re.escape(bad.name)):
         damaged[3]
+
+
+def test_a_cancelled_odmo_bank_leaves_the_model_folder_as_it_was(
+    tiny_model_dir: Path, procedural_npz_dir: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    model = Path(shutil.copytree(tiny_model_dir, tmp_path / "model"))
+    before = _files(model)
+    streamed = encode_bank_windows
+
+    def cancelled_after_one_batch(*args: object, **kwargs: object) -> object:
+        calls: list[int] = []
+        kwargs["progress"] = lambda done, total: calls.append(done)
+        return streamed(*args, **kwargs | {"batch": 16, "cancel": lambda: len(calls) >= 1})
+
+    monkeypatch.setattr("engine.generate.encode_bank_windows", cancelled_after_one_batch)
+    monkeypatch.setenv("ODMO_CACHE_DIR", str(tmp_path / "cache"))
+    argv = ["bank", "--model", model, "--data", procedural_npz_dir, "--pattern", r"^(?P<action>[a-z]+)_"]
+    assert cli.main([str(a) for a in [*argv, "--stride", "10", "--projections", "pca"]]) != 0
+    assert _files(model) == before  # the old bank, and no temporary
+
+
+def _files(folder: Path) -> dict[str, bytes]:
+    """Every file of ``folder`` (but its advisory lock file, which stays by design) and its bytes."""
+    return {p.name: p.read_bytes() for p in folder.iterdir() if p.is_file() and p.name != LOCK_FILE}
