@@ -293,6 +293,8 @@ def model_switches(config: OdmoConfig) -> str:
         parts.append(
             f"`w_speed = {config.w_speed:g}` (a loss on that decode's per-window {what}joint speeds)"
         )
+    if config.w_spectrum > 0:
+        parts.append(f"`w_spectrum = {config.w_spectrum:g}` (a loss on that decode's log amplitude spectra)")
     if config.contrastive_pull != 1.0:
         parts.append(
             f"`contrastive_pull = {config.contrastive_pull:g}` (the same-action pull of the contrastive term)"

@@ -19,6 +19,7 @@ LOSS_TERMS = (
     "skate",
     "free",
     "speed",
+    "spectrum",
 )
 
 
@@ -70,6 +71,28 @@ def speed_loss(
         pred_speed = torch.log(pred_speed + LOG_SPEED_FLOOR)
         target_speed = torch.log(target_speed + LOG_SPEED_FLOOR)
     return (pred_speed - target_speed).square().mean()
+
+
+#: Amplitude (m) added to both sides of the log-spectrum error, so that bins without motion weigh little.
+SPECTRUM_FLOOR = 0.002
+
+
+def amplitude_spectra(joints: Tensor, mask: Tensor, root: int) -> Tensor:
+    """Per window, joint and frequency (B, J, T // 2 + 1): the amplitude (m) of the root-relative joints
+    (B, T, J, 3) about their mean over the real frames, padded frames held at that mean; phase-free."""
+    local = joints - joints[:, :, root : root + 1]
+    m = mask.to(joints.dtype)[:, :, None, None]
+    mean = (local * m).sum(1, keepdim=True) / m.sum(1, keepdim=True).clamp(min=1.0)
+    spectra = torch.fft.rfft((local - mean) * m, dim=1).abs().square().sum(-1)
+    return (spectra.clamp(min=1e-12).sqrt() / m.sum(1).clamp(min=1.0)).transpose(1, 2)
+
+
+def spectrum_loss(pred: Tensor, target: Tensor, mask: Tensor, root: int) -> Tensor:
+    """Squared error of the log amplitude spectra (``amplitude_spectra`` + SPECTRUM_FLOOR) of ``pred``
+    against ``target`` (B, T, J, 3): how much each joint moves at each rhythm, whatever the phase, so
+    that a slow raise and a quick wave of the same speed differ."""
+    pred_log = torch.log(amplitude_spectra(pred, mask, root) + SPECTRUM_FLOOR)
+    return (pred_log - torch.log(amplitude_spectra(target, mask, root) + SPECTRUM_FLOOR)).square().mean()
 
 
 def contact_loss(logits: Tensor, labels: Tensor, mask: Tensor) -> Tensor:
@@ -152,12 +175,14 @@ def odmo_losses(
         "skate": zero,
         "free": zero,
         "speed": zero,
+        "spectrum": zero,
     }
     if free_joints is not None:
         terms["free"] = masked_mse(free_joints, joints, mask)
         terms["speed"] = speed_loss(
             free_joints, joints, mask, config.fps, root, log=config.speed_error == "log"
         )
+        terms["spectrum"] = spectrum_loss(free_joints, joints, mask, root)
     if contact_logits is not None and contacts is not None:
         feet = pred_joints[:, :, list(config.foot_joints)]
         terms["contact"] = contact_loss(contact_logits, contacts, mask)
@@ -174,6 +199,7 @@ def odmo_losses(
         "skate": config.w_skate if contact_logits is not None else 0.0,
         "free": config.w_free if free_joints is not None else 0.0,
         "speed": config.w_speed if free_joints is not None else 0.0,
+        "spectrum": config.w_spectrum if free_joints is not None else 0.0,
     }
     terms["total"] = sum(weights[k] * terms[k] for k in LOSS_TERMS if weights[k] > 0)
     return terms

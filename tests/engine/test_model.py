@@ -13,12 +13,15 @@ from engine.model import odmo as odmo_module
 from engine.model.config import OdmoConfig
 from engine.model.losses import (
     LOG_SPEED_FLOOR,
+    SPECTRUM_FLOOR,
+    amplitude_spectra,
     contrastive_loss,
     masked_mse,
     mean_speeds,
     odmo_losses,
     prior_loss,
     skate_loss,
+    spectrum_loss,
     speed_loss,
 )
 from engine.model.odmo import OdmoModel
@@ -346,6 +349,38 @@ def test_log_speed_loss_weighs_relative_errors() -> None:
     assert 0.75 < float(loss(0.1, log=True) / loss(0.5, log=True)) < 1.0
     ratio = loss(0.1, log=False) / loss(0.5, log=False)
     torch.testing.assert_close(ratio, torch.tensor(0.04, dtype=torch.float64))  # (0.1 / 0.5)²
+
+
+def _swinging(hz: float, amplitude: float, frames: int = 60, fps: float = 20.0) -> torch.Tensor:
+    """(1, frames, 2, 3): a root walking along x at 1 m/s and a hand swinging sideways about it."""
+    t = torch.arange(frames, dtype=torch.float64) / fps
+    root = torch.stack([t, torch.zeros_like(t), torch.zeros_like(t)], dim=1)
+    swing = amplitude * torch.sin(2 * math.pi * hz * t)
+    hand = root + torch.stack([torch.zeros_like(t), torch.ones_like(t), swing], dim=1)
+    return torch.stack([root, hand], dim=1)[None]
+
+
+def test_amplitude_spectra_put_a_swing_in_its_bin() -> None:
+    """A 0.1 m swing on a whole number of cycles (60 frames at 20 fps: bins of 1/3 Hz) has A/2 in its
+    bin and nothing elsewhere, whatever its phase or the root's walk; padded frames do not count."""
+    mask = torch.ones(1, 60, dtype=torch.bool)
+    quick, slow = _swinging(2.0, 0.1), _swinging(1 / 3, 0.1)
+    spectrum = amplitude_spectra(quick, mask, root=0)[0, 1]
+    assert int(spectrum.argmax()) == 6 and abs(float(spectrum[6]) - 0.05) < 1e-9
+    assert float(spectrum.sum() - spectrum[6]) < 1e-4
+    assert int(amplitude_spectra(slow, mask, root=0)[0, 1].argmax()) == 1
+    assert float(amplitude_spectra(quick, mask, root=0)[0, 0].max()) < 1e-5  # the root itself
+    # the same swing half a cycle later costs nothing; the slow one of the same amplitude does
+    shifted = _swinging(2.0, 0.1, frames=65)[:, 5:]
+    assert float(spectrum_loss(shifted, quick, mask, root=0)) < 1e-12
+    # bins 1 and 6 of the hand swap A/2 for nothing, of 2 joints × 31 bins
+    expected = 2 * math.log((0.05 + SPECTRUM_FLOOR) / SPECTRUM_FLOOR) ** 2 / 62
+    assert abs(float(spectrum_loss(slow, quick, mask, root=0)) - expected) < 1e-3 * expected
+    padded = mask.clone()
+    padded[0, 30:] = False
+    moved = quick.clone()
+    moved[:, 30:] += 3.0
+    torch.testing.assert_close(amplitude_spectra(moved, padded, 0), amplitude_spectra(quick, padded, 0))
 
 
 def test_skate_loss_is_the_squared_speed_of_planted_feet() -> None:
