@@ -133,6 +133,15 @@ def encode_windows(loaded: LoadedModel, motion: Motion, stride: int | None = Non
     return WindowCodes(codes, ends, starts, stride, actions)
 
 
+def _room(array: np.ndarray, rows: int) -> np.ndarray:
+    """``array`` with room for ``rows`` rows: a copy of twice the size when it is short."""
+    if rows <= len(array):
+        return array
+    grown = np.empty((max(rows, 2 * len(array)), *array.shape[1:]), dtype=array.dtype)
+    grown[: len(array)] = array
+    return grown
+
+
 def encode_bank_windows(
     loaded: LoadedModel,
     clips: Sequence[Motion],
@@ -146,23 +155,26 @@ def encode_bank_windows(
     windows of ``clips`` every ``stride`` frames (None: each clip's centre window), taking one clip at a
     time (each read once: ``clips`` may read them from disk) and encoding ``batch`` windows at a time, so
     memory holds one batch and one clip beside the codes. progress(windows done, windows in all) after
-    each batch, the total estimated from the clips seen until the last; CancelledError between batches."""
+    each batch, the total estimated from the clips seen until the last; CancelledError between batches.
+
+    The rows go into arrays that double when full rather than into many small ones: small arrays that
+    outlive each batch's large temporaries fragment the C heap (RSS grew 15 kB a window past 30k).
+    """
     if batch < 1:
         raise ConfigError(f"batch must be at least 1 window, got {batch}")
     pending: list[Motion] = []
-    codes: list[np.ndarray] = []
-    ends: list[np.ndarray] = []
-    owners: list[np.ndarray] = []
-    starts: list[np.ndarray] = []
+    codes = np.empty((batch, loaded.config.latent_dim), dtype=np.float32)
+    ends = np.empty((batch, 3), dtype=np.float32)
+    owners = np.empty(batch, dtype=np.int64)
+    starts = np.zeros(batch, dtype=np.int64)
     done = queued = seen = 0
 
     def flush(count: int) -> None:
-        nonlocal done
+        nonlocal done, codes, ends
         if cancel is not None and cancel():
             raise CancelledError(f"encoding cancelled after {done} windows of {seen} of {len(clips)} clips")
-        batch_codes, batch_ends = encode_clips(loaded, pending[:count])
-        codes.append(batch_codes)
-        ends.append(batch_ends)
+        codes, ends = _room(codes, done + count), _room(ends, done + count)
+        codes[done : done + count], ends[done : done + count] = encode_clips(loaded, pending[:count])
         del pending[:count]
         done += count
         if progress is not None:
@@ -173,19 +185,21 @@ def encode_bank_windows(
             pieces = [clip]
         else:
             first, pieces = clip_windows(loaded, clip, stride)
-            starts.append(first)
-        owners.append(np.full(len(pieces), k, dtype=np.int64))
+            starts = _room(starts, queued + len(pieces))
+            starts[queued : queued + len(pieces)] = first
+        owners = _room(owners, queued + len(pieces))
+        owners[queued : queued + len(pieces)] = k
         pending += pieces
         queued, seen = queued + len(pieces), k + 1
         while len(pending) >= batch:
             flush(batch)
     if pending:
         flush(len(pending))
-    if not codes:
+    if not done:
         raise ConfigError("no clips to encode")
     log.info("encoded %d windows of %d clips", done, len(clips))
-    first_frames = np.concatenate(starts).astype(np.int64) if stride is not None else None
-    return np.concatenate(codes), np.concatenate(ends), np.concatenate(owners), first_frames
+    first_frames = starts[:done].copy() if stride is not None else None
+    return codes[:done].copy(), ends[:done].copy(), owners[:done].copy(), first_frames
 
 
 def bank_window(loaded: LoadedModel, clip: Motion, start: int | None = None) -> Motion:
