@@ -21,6 +21,11 @@ def test_preview_reads_the_banks_map(tiny_model_dir: Path) -> None:
     np.testing.assert_array_equal(preview.actions, bank.actions)
     assert preview.action_names == bank.action_names
     np.testing.assert_array_equal(preview.embeddings["pca"], bank.projections["pca"].embedding_)
+    # the tiny model's bank is written in the current format (sources and meta as columns)
+    assert int(np.load(tiny_model_dir / "latent_bank.npz")["version"]) == 3
+    assert list(preview.sources) == list(bank.sources)
+    assert [dict(m) for m in preview.meta] == [dict(m) for m in bank.meta]
+    assert len(preview.meta) == len(bank.codes) and all("style" in m for m in preview.meta)
 
 
 def test_preview_of_a_folder_without_bank_is_none(tmp_path: Path) -> None:
