@@ -295,6 +295,8 @@ def model_switches(config: OdmoConfig) -> str:
         )
     if config.w_spectrum > 0:
         parts.append(f"`w_spectrum = {config.w_spectrum:g}` (a loss on that decode's log amplitude spectra)")
+    if config.w_free_skate > 0:
+        parts.append(f"`w_free_skate = {config.w_free_skate:g}` (the planted-foot speed loss on that decode)")
     if config.contrastive_pull != 1.0:
         parts.append(
             f"`contrastive_pull = {config.contrastive_pull:g}` (the same-action pull of the contrastive term)"

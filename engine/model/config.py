@@ -21,6 +21,7 @@ _BEFORE_SWITCHES = {
     "w_speed": 0.0,
     "speed_error": "absolute",
     "w_spectrum": 0.0,
+    "w_free_skate": 0.0,
 }
 SCHEDULED_SAMPLING = ("one_step", "free_run")
 #: The paper's model in one setting, ``OdmoConfig(n_actions, n_joints, **PAPER)``: every project change off.
@@ -57,7 +58,8 @@ class OdmoConfig(ModelConfig):
     terms are in m²/s²; ``speed_error`` "log" compares log speeds instead (relative errors: a slow
     wave's hand weighs as much as a run's feet). ``w_spectrum`` weights the squared error of that decode's
     log amplitude spectra per joint (how much it moves at each rhythm, phase-free: a slow raise and a
-    quick wave of one mean speed differ there).
+    quick wave of one mean speed differ there). ``w_free_skate`` weights the skate loss on that decode's
+    feet (the motion sampling shows; ``w_skate`` sees the teacher-forced one).
     ``scheduled_sampling`` says where the non-teacher-forced previous poses come from: "one_step" (a
     teacher-forced pass, the default) or "free_run" (a free-running decode, as the reference's per-step
     loop does; measured worse on the bundled recipe, see the README).
@@ -106,13 +108,14 @@ class OdmoConfig(ModelConfig):
     w_speed: float = 0.0
     speed_error: str = "absolute"
     w_spectrum: float = 0.0
+    w_free_skate: float = 0.0
     arch: str = "odmo"
 
     POSITIVE = ("n_actions", "n_joints", "window", "fps", "latent_dim", "enc_hidden", "enc_fc", "traj_hidden")
     POSITIVE += ("motion_hidden", "prior_sigma2", "lr", "batch_size", "epoch_size")
     NON_NEGATIVE = ("w_recon", "w_traj", "w_consistency", "w_contrastive", "w_prior", "traj_y_weight")
     NON_NEGATIVE += ("w_raw", "w_contact", "w_velocity", "contrastive_pull", "epochs", "tf_decay_epochs")
-    NON_NEGATIVE += ("w_skate", "w_free", "w_speed", "w_spectrum")
+    NON_NEGATIVE += ("w_skate", "w_free", "w_speed", "w_spectrum", "w_free_skate")
     RATES = ("tf_start", "tf_end")
     ARCH = "odmo"
     BEFORE = _BEFORE_SWITCHES

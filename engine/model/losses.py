@@ -20,6 +20,7 @@ LOSS_TERMS = (
     "free",
     "speed",
     "spectrum",
+    "free_skate",
 )
 
 
@@ -176,6 +177,7 @@ def odmo_losses(
         "free": zero,
         "speed": zero,
         "spectrum": zero,
+        "free_skate": zero,
     }
     if free_joints is not None:
         terms["free"] = masked_mse(free_joints, joints, mask)
@@ -187,6 +189,9 @@ def odmo_losses(
         feet = pred_joints[:, :, list(config.foot_joints)]
         terms["contact"] = contact_loss(contact_logits, contacts, mask)
         terms["skate"] = skate_loss(feet, contacts, mask, config.fps)
+        if free_joints is not None:
+            free_feet = free_joints[:, :, list(config.foot_joints)]
+            terms["free_skate"] = skate_loss(free_feet, contacts, mask, config.fps)
     weights = {
         "recon": config.w_recon,
         "traj": config.w_traj,
@@ -200,6 +205,7 @@ def odmo_losses(
         "free": config.w_free if free_joints is not None else 0.0,
         "speed": config.w_speed if free_joints is not None else 0.0,
         "spectrum": config.w_spectrum if free_joints is not None else 0.0,
+        "free_skate": config.w_free_skate if free_joints is not None and contact_logits is not None else 0.0,
     }
     terms["total"] = sum(weights[k] * terms[k] for k in LOSS_TERMS if weights[k] > 0)
     return terms

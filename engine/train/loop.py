@@ -103,7 +103,7 @@ def _forward(
     tf_noise = None if noise is None else noise.tf
     out = model.decode_full(z, data.actions, end, prev_truth=truth, tf_rate=tf_rate, tf_noise=tf_noise)
     free = None
-    if config.w_free > 0 or config.w_speed > 0 or config.w_spectrum > 0:
+    if config.w_free > 0 or config.w_speed > 0 or config.w_spectrum > 0 or config.w_free_skate > 0:
         free = out.joints if truth is None else model.decode_full(z, data.actions, end).joints
     return odmo_losses(
         config,

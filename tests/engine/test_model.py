@@ -396,6 +396,23 @@ def test_skate_loss_is_the_squared_speed_of_planted_feet() -> None:
     torch.testing.assert_close(skate_loss(feet, labels, mask, 20.0), torch.tensor(2.5))
 
 
+def test_free_skate_is_taken_on_the_free_running_decode() -> None:
+    cfg = _model(
+        w_skate=0.0, w_free_skate=2.0, foot_contact=True, foot_joints=(1,), foot_heights=(0.0,)
+    ).config
+    joints, mask = torch.zeros(2, T, J, 3), torch.ones(2, T, dtype=torch.bool)
+    free = joints.clone()
+    free[:, :, 1, 0] = torch.arange(T, dtype=torch.float32) * 0.05  # the free decode's foot slides at 1 m/s
+    kw = {"mu": torch.zeros(2, 20), "logvar": torch.zeros(2, 20), "same": torch.tensor([True]), "root": 0}
+    terms = odmo_losses(cfg, joints=joints, trajectory=joints[:, :, 0], mask=mask, pred_joints=joints,
+                        pred_trajectory=joints[:, :, 0], contact_logits=torch.zeros(2, T, 1),
+                        contacts=torch.ones(2, T, 1), free_joints=free, **kw)  # fmt: skip
+    torch.testing.assert_close(terms["skate"], torch.tensor(0.0))
+    torch.testing.assert_close(terms["free_skate"], torch.tensor(1.0))
+    expected = terms["contrastive"] + terms["prior"] + terms["contact"] + 2.0 * terms["free_skate"]
+    torch.testing.assert_close(terms["total"], expected)
+
+
 def test_contrastive_known_values() -> None:
     mu_a = torch.zeros(4, 2)
     mu_b = torch.tensor([[0.3, 0.0], [1.0, 0.0], [3.0, 4.0], [6.0, 0.0]])
