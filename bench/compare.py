@@ -106,6 +106,7 @@ COLUMNS = (
     ("Style ARI", "style_ari", 3),
     ("End error (m)", "end_error_m", 3),
     ("Recon. error (m)", "reconstruction_error_m", 4),
+    ("Recon. acc. ↑", "reconstruction_accuracy", 3),
     ("Bone cv ↓", "bone_length_cv", 4),
     ("Foot skate (m/s) →", "foot_skate_m_s", 3),
     ("Under floor →", "floor_penetration", 3),
@@ -131,6 +132,7 @@ UNCONDITIONAL_COLUMNS = (
 )
 # Per-action tables (``per_action_entries``) against real: (header, metric key, decimals).
 PER_ACTION_COLUMNS = (
+    ("accuracy", "accuracy", 2),
     ("hand speed (m/s)", "hand_speed_m_s", 2),
     ("hand amp. (m)", "hand_amplitude_m", 3),
     ("foot speed (m/s)", "foot_speed_m_s", 2),
@@ -278,7 +280,8 @@ def results_markdown(
     for name, block, speed in rows:
         cells = [_cell(block, key, d) for _, key, d in COLUMNS]
         if name == "Real motions":
-            cells[[k for _, k, _ in COLUMNS].index("reconstruction_error_m")] = "n/a"
+            for key in ("reconstruction_error_m", "reconstruction_accuracy"):
+                cells[[k for _, k, _ in COLUMNS].index(key)] = "n/a"
         cells.append("n/a" if speed is None else f"{speed:.0f}")
         lines.append(f"| {name} | " + " | ".join(cells) + " |")
     lines.append("")

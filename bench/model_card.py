@@ -21,6 +21,7 @@ METRICS = (
     ("end_error_m", "End-point error (m)"),
     ("end_error_pct", "End-point error (% of root travel)"),
     ("reconstruction_error_m", "Reconstruction error (m)"),
+    ("reconstruction_accuracy", "Held-out reconstructions recognised as their action (0..1)"),
     ("bone_length_cv", "Worst-bone length variation (std/mean, median over clips)"),
     ("foot_skate_m_s", "Planted-foot speed (m/s)"),
     ("floor_penetration", "Frames with a foot > 2 cm under the floor (share)"),
@@ -34,6 +35,7 @@ METRICS = (
 )
 #: Per-action columns of the card: (metric, heading, format).
 PER_ACTION = (
+    ("accuracy", "accuracy", "{:.2f}"),
     ("bone_length_cv", "bone cv", "{:.2%}"),
     ("foot_skate_m_s", "planted-foot speed (m/s)", "{:.3f}"),
     ("floor_penetration", "frames under floor", "{:.2%}"),

@@ -24,6 +24,7 @@ TABLE_ORDER = (
     "style_nmi",
     "style_ari",
     "reconstruction_error_m",
+    "reconstruction_accuracy",
     "end_error_m",
     "end_error_pct",
     "control_accuracy",
@@ -38,6 +39,7 @@ TABLE_ORDER = (
 )
 # Columns of the per-action table: (metric, heading).
 PER_ACTION_COLUMNS = (
+    ("accuracy", "accuracy"),
     ("hand_speed_m_s", "hand speed"),
     ("hand_amplitude_m", "hand amp."),
     ("foot_speed_m_s", "foot speed"),

@@ -18,9 +18,8 @@ import torch
 from engine.errors import ConfigError
 from engine.generators.a2m import LoadedA2m, generate_a2m
 from engine.metrics.classifier import Classifier
-from engine.metrics.evaluate import check_compatible, evaluate_sets, report
+from engine.metrics.evaluate import check_compatible, evaluate_sets, reconstruction_metrics, report
 from engine.metrics.features import canonical_windows, root_heights
-from engine.metrics.reconstruction import mpjpe
 from engine.motion.motion import Motion
 from engine.train.windows import WindowBatch, crop_windows, prepare_clips
 
@@ -39,14 +38,20 @@ NOT_APPLICABLE = (
 )
 
 
-def a2m_reconstruction_error(loaded: LoadedA2m, batch: WindowBatch) -> float:
-    """MPJPE (metres) of real windows rebuilt free-running from their posterior means z_1..z_T."""
+def a2m_reconstruct(loaded: LoadedA2m, batch: WindowBatch) -> np.ndarray:
+    """Joints (B, T, J, 3) of real windows rebuilt free-running from their posterior means z_1..z_T."""
     device = next(loaded.model.parameters()).device
     with torch.inference_mode():
         joints = torch.from_numpy(np.ascontiguousarray(batch.joints, np.float32)).to(device)
         actions = torch.from_numpy(np.asarray(batch.actions, np.int64)).to(device)
         out = loaded.model(joints, actions, teacher=False, generator=None)
-    return mpjpe(out.joints.cpu().numpy(), batch.joints, batch.mask)
+    return out.joints.cpu().numpy()
+
+
+def _reconstruction(
+    loaded: LoadedA2m, batch: WindowBatch, classifier: Classifier | None, names: list[str]
+) -> dict[str, float]:
+    return reconstruction_metrics(a2m_reconstruct(loaded, batch), batch, classifier, names)
 
 
 def _generated_windows(
@@ -102,9 +107,7 @@ def evaluate_a2m(
         repeats=repeats,
         n_per_action=n_per_action,
         seed=seed,
-        extra=lambda rng: {
-            "reconstruction_error_m": a2m_reconstruction_error(loaded, crop_windows(prepared, recon_idx, rng))
-        },
+        extra=lambda rng: _reconstruction(loaded, crop_windows(prepared, recon_idx, rng), classifier, names),
         progress=progress,
         cancel=cancel,
     )

@@ -126,6 +126,10 @@ def _set_metrics(
     if classifier is not None:
         feats, pred = _classify(classifier, windows, mask, names)
         out["accuracy"] = recognition_accuracy(pred, labels)
+        for a in np.unique(labels):
+            out[f"accuracy{PER_ACTION}{names[int(a)]}"] = recognition_accuracy(
+                pred[labels == a], labels[labels == a]
+            )
         out["fid"] = fid(feats, reference["features"])
         out["kid"] = kid(feats, reference["features"])
         out["precision"], out["recall"] = precision_recall(reference["features"], feats)
@@ -169,12 +173,25 @@ def _encode(loaded: LoadedModel, batch: WindowBatch) -> torch.Tensor:
     return codes
 
 
-def reconstruction_error(loaded: LoadedModel, batch: WindowBatch) -> float:
-    """MPJPE (metres) of encode → decode (true action and end location) over the real frames of a batch."""
+def reconstruct(loaded: LoadedModel, batch: WindowBatch) -> np.ndarray:
+    """Joints (B, T, J, 3) of encode → decode (true action and end location), in the batch's frame."""
     codes = _encode(loaded, batch)
     ends = torch.from_numpy(np.ascontiguousarray(batch.ends, np.float32))
     recon = decode_tensors(loaded, codes, torch.from_numpy(np.asarray(batch.actions, np.int64)), ends)[0]
-    return mpjpe(recon - display_lift(loaded), batch.joints, batch.mask)
+    return recon - display_lift(loaded)
+
+
+def reconstruction_metrics(
+    recon: np.ndarray, batch: WindowBatch, classifier: Classifier | None, names: list[str]
+) -> dict[str, float]:
+    """MPJPE (metres) of reconstructions of a batch's real windows over its real frames, and with a
+    classifier the share of them recognised as their true action (a decoder that loses an action's
+    movement shows here, whatever the sampling does)."""
+    out = {"reconstruction_error_m": mpjpe(recon, batch.joints, batch.mask)}
+    if classifier is not None:
+        pred = _classify(classifier, np.asarray(recon, np.float32), batch.mask, names)[1]
+        out["reconstruction_accuracy"] = recognition_accuracy(pred, np.asarray(batch.actions))
+    return out
 
 
 def held_out(loaded: LoadedModel, sources: Sequence[str]) -> np.ndarray:
@@ -305,7 +322,8 @@ def evaluate(
         return _generate(loaded, wanted, n, strategy, rng)
 
     def model_metrics(rng: np.random.Generator) -> dict[str, float]:
-        out = {"reconstruction_error_m": reconstruction_error(loaded, crop_windows(prepared, recon_idx, rng))}
+        recon_batch = crop_windows(prepared, recon_idx, rng)
+        out = reconstruction_metrics(reconstruct(loaded, recon_batch), recon_batch, classifier, names)
         every = crop_windows(prepared, every_idx, rng)
         out.update(_model_metrics(loaded, every, styles, classifier, strategy, n_codes, rng))
         return out

@@ -14,7 +14,7 @@ from engine.errors import ConfigError
 from engine.generators.a2m import load_a2m
 from engine.metrics.a2m_eval import evaluate_a2m
 from engine.metrics.classifier import Classifier, train_classifier
-from engine.metrics.evaluate import evaluate, evaluate_sets, report
+from engine.metrics.evaluate import evaluate, evaluate_sets, reconstruction_metrics, report
 from engine.modelio import load_model
 from engine.motion.datasets import load_folder
 from engine.motion.formats import write_motion
@@ -34,7 +34,13 @@ REAL_KEYS = {
     "apd",
     "n_apd",
 }
-MODEL_KEYS = {"mode_homogeneity", "style_nmi", "style_ari", "reconstruction_error_m"}
+MODEL_KEYS = {
+    "mode_homogeneity",
+    "style_nmi",
+    "style_ari",
+    "reconstruction_error_m",
+    "reconstruction_accuracy",
+}
 CONTROL_KEYS = {"end_error_m", "end_error_pct", "control_accuracy"}
 CONTROL_KEYS |= {"end_error_out_m", "end_error_out_pct", "control_accuracy_out"}
 PHYSICS_KEYS = {"bone_length_cv", "foot_skate_m_s", "floor_penetration", "floor_depth_m", "float_share"}
@@ -73,6 +79,10 @@ def test_evaluate_returns_every_metric_finite(
     assert 0.0 <= gen["accuracy"]["mean"] <= 1.0 and 0.0 <= result["real"]["accuracy"]["mean"] <= 1.0
     assert gen["end_error_m"]["mean"] > 0 and gen["reconstruction_error_m"]["mean"] > 0
     assert result["meta"]["repeats"] == 2 and result["meta"]["actions"] == PROCEDURAL_ACTIONS
+    # the same number of motions per action: the set's accuracy is the mean of the per-action ones
+    for side in ("real", "generated"):
+        by_action = [result["per_action"][a][side]["accuracy"]["mean"] for a in PROCEDURAL_ACTIONS]
+        assert result[side]["accuracy"]["mean"] == pytest.approx(np.mean(by_action))
     # reconstruction runs on the tiny model's validation clips only (its bank marks the training ones)
     assert result["meta"]["reconstruction_held_out"]
     assert 0 < result["meta"]["n_reconstruction_clips"] < len(procedural_clips)
@@ -116,6 +126,22 @@ def test_evaluate_sets_shares_the_real_row_and_runs_extra_last(
     per_action = odmo["per_action"]
     assert set(per_action) == set(names)
     assert all("hand_speed_m_s" in per_action[a]["real"] for a in names)
+
+
+def test_reconstruction_metrics_of_a_perfect_reconstruction(
+    procedural_clips: list[Motion], classifier: Classifier
+) -> None:
+    names = list(PROCEDURAL_ACTIONS)
+    prepared = prepare_clips(procedural_clips, names, 20.0, 40)
+    batch = crop_windows(prepared, np.arange(len(procedural_clips)), np.random.default_rng(0))
+    joints = np.asarray(batch.joints, np.float32)
+    out = reconstruction_metrics(joints, batch, classifier, names)
+    pred = classifier.classify(joints, batch.mask)[1]
+    truth = [classifier.action_names.index(names[a]) for a in batch.actions]
+    assert out["reconstruction_error_m"] == 0.0
+    assert out["reconstruction_accuracy"] == pytest.approx(np.mean(pred == np.array(truth)))
+    shifted = reconstruction_metrics(joints + np.float32([0.0, 0.0, 0.03]), batch, None, names)
+    assert shifted == {"reconstruction_error_m": pytest.approx(0.03)}
 
 
 def test_mismatched_actions_or_skeleton_fail(tiny_model_dir: Path, procedural_clips: list[Motion]) -> None:
