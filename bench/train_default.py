@@ -69,6 +69,9 @@ def parse_args() -> argparse.Namespace:
         help="how the w_speed term compares joint speeds (log: relative errors)",
     )
     p.add_argument(
+        "--spectrum-no-legs", action="store_true", help="leave the legs out of the w_spectrum term"
+    )
+    p.add_argument(
         "--weight",
         action="append",
         default=list(BUNDLED_WEIGHTS),
@@ -112,6 +115,7 @@ def main() -> int:
         tf_decay_epochs=args.tf_decay_epochs,
         contrastive_pull=args.contrastive_pull,
         speed_error=args.speed_error,
+        spectrum_legs=not args.spectrum_no_legs,
         **weights,
     )
     work = args.work
@@ -294,7 +298,10 @@ def model_switches(config: OdmoConfig) -> str:
             f"`w_speed = {config.w_speed:g}` (a loss on that decode's per-window {what}joint speeds)"
         )
     if config.w_spectrum > 0:
-        parts.append(f"`w_spectrum = {config.w_spectrum:g}` (a loss on that decode's log amplitude spectra)")
+        legs = "" if config.spectrum_legs else ", legs left out"
+        parts.append(
+            f"`w_spectrum = {config.w_spectrum:g}` (a loss on that decode's log amplitude spectra{legs})"
+        )
     if config.w_free_skate > 0:
         parts.append(f"`w_free_skate = {config.w_free_skate:g}` (the planted-foot speed loss on that decode)")
     if config.contrastive_pull != 1.0:

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import torch
 from torch import Tensor
 
@@ -88,12 +90,28 @@ def amplitude_spectra(joints: Tensor, mask: Tensor, root: int) -> Tensor:
     return (spectra.clamp(min=1e-12).sqrt() / m.sum(1).clamp(min=1.0)).transpose(1, 2)
 
 
-def spectrum_loss(pred: Tensor, target: Tensor, mask: Tensor, root: int) -> Tensor:
+def spectrum_joints(config: OdmoConfig, parents: Sequence[int], root: int) -> list[int]:
+    """Joints the spectrum term sees: all, or with ``spectrum_legs`` off all but the chains from the root
+    to the config's foot joints (a per-joint spectrum leaves a foot's lift out of phase with its step)."""
+    joints = set(range(len(parents)))
+    if not config.spectrum_legs:
+        for j in config.foot_joints:
+            while j != root and j >= 0:
+                joints.discard(j)
+                j = parents[j]
+    return sorted(joints)
+
+
+def spectrum_loss(
+    pred: Tensor, target: Tensor, mask: Tensor, root: int, on: Sequence[int] | None = None
+) -> Tensor:
     """Squared error of the log amplitude spectra (``amplitude_spectra`` + SPECTRUM_FLOOR) of ``pred``
-    against ``target`` (B, T, J, 3): how much each joint moves at each rhythm, whatever the phase, so
-    that a slow raise and a quick wave of the same speed differ."""
-    pred_log = torch.log(amplitude_spectra(pred, mask, root) + SPECTRUM_FLOOR)
-    return (pred_log - torch.log(amplitude_spectra(target, mask, root) + SPECTRUM_FLOOR)).square().mean()
+    against ``target`` (B, T, J, 3) over the joints ``on`` (None: all): how much each joint moves at each
+    rhythm, whatever the phase, so that a slow raise and a quick wave of the same speed differ."""
+    pick = slice(None) if on is None else list(on)
+    pred_log = torch.log(amplitude_spectra(pred, mask, root)[:, pick] + SPECTRUM_FLOOR)
+    real_log = torch.log(amplitude_spectra(target, mask, root)[:, pick] + SPECTRUM_FLOOR)
+    return (pred_log - real_log).square().mean()
 
 
 def contact_loss(logits: Tensor, labels: Tensor, mask: Tensor) -> Tensor:
@@ -145,6 +163,7 @@ def odmo_losses(
     contact_logits: Tensor | None = None,
     contacts: Tensor | None = None,
     free_joints: Tensor | None = None,
+    spectrum_on: Sequence[int] | None = None,
 ) -> dict[str, Tensor]:
     """Every loss term and the weighted ``total``.
 
@@ -160,6 +179,7 @@ def odmo_losses(
     contact_logits, contacts : (2B, T, F) predicted contact logits and the data's labels of the config's
         foot joints (None: no contact head).
     free_joints : (2B, T, J, 3) a free-running decode of the same codes (None: no free-running terms).
+    spectrum_on : the joints the spectrum term compares (``spectrum_joints``; None: all).
     """
     axis = torch.tensor([1.0, config.traj_y_weight, 1.0], device=joints.device)
     zero = joints.new_zeros(())
@@ -184,7 +204,7 @@ def odmo_losses(
         terms["speed"] = speed_loss(
             free_joints, joints, mask, config.fps, root, log=config.speed_error == "log"
         )
-        terms["spectrum"] = spectrum_loss(free_joints, joints, mask, root)
+        terms["spectrum"] = spectrum_loss(free_joints, joints, mask, root, spectrum_on)
     if contact_logits is not None and contacts is not None:
         feet = pred_joints[:, :, list(config.foot_joints)]
         terms["contact"] = contact_loss(contact_logits, contacts, mask)

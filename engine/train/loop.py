@@ -15,7 +15,7 @@ import torch
 from engine.errors import ConfigError
 from engine.latent.bank import build_bank
 from engine.model.config import OdmoConfig
-from engine.model.losses import LOSS_TERMS, odmo_losses
+from engine.model.losses import LOSS_TERMS, odmo_losses, spectrum_joints
 from engine.model.odmo import OdmoModel
 from engine.model.precision import bfloat16_autocast, native_bfloat16
 from engine.modelio import save_bank, save_model
@@ -86,13 +86,15 @@ def _forward(
     config: OdmoConfig,
     data: _Tensors,
     same: torch.Tensor,
-    root: int,
+    body: tuple[int, list[int]],
     *,
     tf_rate: float,
     noise: _Noise | None,
 ) -> dict[str, torch.Tensor]:
     """Loss terms of one batch (anchors then partners); training (``noise`` given) samples z and teacher
-    forces, evaluation (None) decodes the code means free-running."""
+    forces, evaluation (None) decodes the code means free-running. ``body``: the root and the joints the
+    spectrum term sees."""
+    root, spectrum_on = body
     mu, logvar = model.encode(data.lmp, data.mask)
     if noise is not None:
         z = mu + torch.exp(0.5 * logvar) * noise.eps
@@ -120,6 +122,7 @@ def _forward(
         contact_logits=out.contact,
         contacts=data.contacts,
         free_joints=free,
+        spectrum_on=spectrum_on,
     )
 
 
@@ -150,15 +153,15 @@ class _Noise:
 class _StepLoss(torch.nn.Module):
     """The model and its training loss as one module, so DistributedDataParallel sees one forward."""
 
-    def __init__(self, model: OdmoModel, root: int) -> None:
+    def __init__(self, model: OdmoModel, body: tuple[int, list[int]]) -> None:
         super().__init__()
-        self.model, self.root = model, root
+        self.model, self.body = model, body
 
     def forward(
         self, data: _Tensors, same: torch.Tensor, tf_rate: float, noise: _Noise
     ) -> dict[str, torch.Tensor]:
         """The loss terms of a training batch."""
-        return _forward(self.model, self.model.config, data, same, self.root, tf_rate=tf_rate, noise=noise)
+        return _forward(self.model, self.model.config, data, same, self.body, tf_rate=tf_rate, noise=noise)
 
 
 class OdmoSteps:
@@ -195,7 +198,9 @@ class OdmoSteps:
                 f"batch_size {self.config.batch_size} does not split into equal shares of pairs over "
                 f"{ranks.world} processes; use a multiple of {2 * ranks.world}"
             )
-        self.loss = parallel(_StepLoss(model, prepared.skeleton.root), ranks)
+        skeleton = prepared.skeleton
+        self.body = (skeleton.root, spectrum_joints(self.config, skeleton.parents, skeleton.root))
+        self.loss = parallel(_StepLoss(model, self.body), ranks)
 
     def step(self, epoch: int, rng: np.random.Generator, generator: torch.Generator) -> dict[str, float]:
         """One Adam step on a fresh batch of anchors and their partners."""
@@ -228,7 +233,7 @@ class OdmoSteps:
                 self.model,
                 self.config,
                 *self.validation,
-                self.prepared.skeleton.root,
+                self.body,
                 tf_rate=0.0,
                 noise=None,
             )

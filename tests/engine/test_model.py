@@ -21,6 +21,7 @@ from engine.model.losses import (
     odmo_losses,
     prior_loss,
     skate_loss,
+    spectrum_joints,
     spectrum_loss,
     speed_loss,
 )
@@ -394,6 +395,21 @@ def test_skate_loss_is_the_squared_speed_of_planted_feet() -> None:
     torch.testing.assert_close(skate_loss(feet, labels, mask, 20.0), torch.tensor(1.0))
     labels[0, :, 1] = 1.0
     torch.testing.assert_close(skate_loss(feet, labels, mask, 20.0), torch.tensor(2.5))
+
+
+def test_spectrum_leaves_the_legs_out_when_asked() -> None:
+    # root 0; spine 1 -> hand 2; leg 3 -> foot 4 -> toe 5; a second leg 6 -> foot 7
+    parents = [-1, 0, 1, 0, 3, 4, 0, 6]
+    cfg = OdmoConfig(n_actions=3, n_joints=8, foot_joints=(4, 5, 7), foot_heights=(0.1, 0.05, 0.1))
+    assert spectrum_joints(cfg, parents, 0) == list(range(8))
+    no_legs = OdmoConfig(**(cfg.to_dict() | {"spectrum_legs": False}))
+    assert spectrum_joints(no_legs, parents, 0) == [0, 1, 2]
+    t = torch.arange(40, dtype=torch.float32) / 20.0
+    pred, target = torch.zeros(1, 40, 8, 3), torch.zeros(1, 40, 8, 3)
+    target[0, :, 5, 1] = 0.1 * torch.sin(2 * math.pi * t)  # only a toe moves
+    mask = torch.ones(1, 40, dtype=torch.bool)
+    assert spectrum_loss(pred, target, mask, 0) > 0
+    assert spectrum_loss(pred, target, mask, 0, [0, 1, 2]) == 0
 
 
 def test_free_skate_is_taken_on_the_free_running_decode() -> None:
