@@ -127,9 +127,8 @@ def _set_metrics(
         feats, pred = _classify(classifier, windows, mask, names)
         out["accuracy"] = recognition_accuracy(pred, labels)
         for a in np.unique(labels):
-            out[f"accuracy{PER_ACTION}{names[int(a)]}"] = recognition_accuracy(
-                pred[labels == a], labels[labels == a]
-            )
+            of_a = labels == a
+            out[f"accuracy{PER_ACTION}{names[int(a)]}"] = recognition_accuracy(pred[of_a], labels[of_a])
         out["fid"] = fid(feats, reference["features"])
         out["kid"] = kid(feats, reference["features"])
         out["precision"], out["recall"] = precision_recall(reference["features"], feats)

@@ -206,12 +206,11 @@ def odmo_losses(
         )
         terms["spectrum"] = spectrum_loss(free_joints, joints, mask, root, spectrum_on)
     if contact_logits is not None and contacts is not None:
-        feet = pred_joints[:, :, list(config.foot_joints)]
+        feet = list(config.foot_joints)
         terms["contact"] = contact_loss(contact_logits, contacts, mask)
-        terms["skate"] = skate_loss(feet, contacts, mask, config.fps)
+        terms["skate"] = skate_loss(pred_joints[:, :, feet], contacts, mask, config.fps)
         if free_joints is not None:
-            free_feet = free_joints[:, :, list(config.foot_joints)]
-            terms["free_skate"] = skate_loss(free_feet, contacts, mask, config.fps)
+            terms["free_skate"] = skate_loss(free_joints[:, :, feet], contacts, mask, config.fps)
     weights = {
         "recon": config.w_recon,
         "traj": config.w_traj,

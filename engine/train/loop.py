@@ -86,15 +86,14 @@ def _forward(
     config: OdmoConfig,
     data: _Tensors,
     same: torch.Tensor,
-    body: tuple[int, list[int]],
+    root: int,
+    spectrum_on: list[int],
     *,
     tf_rate: float,
     noise: _Noise | None,
 ) -> dict[str, torch.Tensor]:
     """Loss terms of one batch (anchors then partners); training (``noise`` given) samples z and teacher
-    forces, evaluation (None) decodes the code means free-running. ``body``: the root and the joints the
-    spectrum term sees."""
-    root, spectrum_on = body
+    forces, evaluation (None) decodes the code means free-running; the spectrum term sees ``spectrum_on``."""
     mu, logvar = model.encode(data.lmp, data.mask)
     if noise is not None:
         z = mu + torch.exp(0.5 * logvar) * noise.eps
@@ -153,15 +152,24 @@ class _Noise:
 class _StepLoss(torch.nn.Module):
     """The model and its training loss as one module, so DistributedDataParallel sees one forward."""
 
-    def __init__(self, model: OdmoModel, body: tuple[int, list[int]]) -> None:
+    def __init__(self, model: OdmoModel, root: int, spectrum_on: list[int]) -> None:
         super().__init__()
-        self.model, self.body = model, body
+        self.model, self.root, self.spectrum_on = model, root, spectrum_on
 
     def forward(
         self, data: _Tensors, same: torch.Tensor, tf_rate: float, noise: _Noise
     ) -> dict[str, torch.Tensor]:
         """The loss terms of a training batch."""
-        return _forward(self.model, self.model.config, data, same, self.body, tf_rate=tf_rate, noise=noise)
+        return _forward(
+            self.model,
+            self.model.config,
+            data,
+            same,
+            self.root,
+            self.spectrum_on,
+            tf_rate=tf_rate,
+            noise=noise,
+        )
 
 
 class OdmoSteps:
@@ -198,9 +206,9 @@ class OdmoSteps:
                 f"batch_size {self.config.batch_size} does not split into equal shares of pairs over "
                 f"{ranks.world} processes; use a multiple of {2 * ranks.world}"
             )
-        skeleton = prepared.skeleton
-        self.body = (skeleton.root, spectrum_joints(self.config, skeleton.parents, skeleton.root))
-        self.loss = parallel(_StepLoss(model, self.body), ranks)
+        root = prepared.skeleton.root
+        self.spectrum_on = spectrum_joints(self.config, prepared.skeleton.parents, root)
+        self.loss = parallel(_StepLoss(model, root, self.spectrum_on), ranks)
 
     def step(self, epoch: int, rng: np.random.Generator, generator: torch.Generator) -> dict[str, float]:
         """One Adam step on a fresh batch of anchors and their partners."""
@@ -233,7 +241,8 @@ class OdmoSteps:
                 self.model,
                 self.config,
                 *self.validation,
-                self.body,
+                self.prepared.skeleton.root,
+                self.spectrum_on,
                 tf_rate=0.0,
                 noise=None,
             )
