@@ -37,7 +37,7 @@ from engine.generate import interpolate
 from engine.metrics.classifier import load_classifier, train_classifier
 from engine.metrics.evaluate import evaluate
 from engine.metrics.smoothness import max_frame_jump
-from engine.model.config import SPEED_ERRORS, OdmoConfig
+from engine.model.config import FREE_SKATE_CONTACTS, SPEED_ERRORS, OdmoConfig
 from engine.modelio import load_model
 from engine.motion.datasets import load_folder
 from engine.motion.resample import resample_motion
@@ -70,6 +70,12 @@ def parse_args() -> argparse.Namespace:
     )
     p.add_argument(
         "--spectrum-no-legs", action="store_true", help="leave the legs out of the w_spectrum term"
+    )
+    p.add_argument(
+        "--free-skate-contacts",
+        choices=FREE_SKATE_CONTACTS,
+        default="data",
+        help="where the w_free_skate term holds the feet: where the data's are planted or the decode's own",
     )
     p.add_argument(
         "--weight",
@@ -116,6 +122,7 @@ def main() -> int:
         contrastive_pull=args.contrastive_pull,
         speed_error=args.speed_error,
         spectrum_legs=not args.spectrum_no_legs,
+        free_skate_contacts=args.free_skate_contacts,
         **weights,
     )
     work = args.work
@@ -303,7 +310,11 @@ def model_switches(config: OdmoConfig) -> str:
             f"`w_spectrum = {config.w_spectrum:g}` (a loss on that decode's log amplitude spectra{legs})"
         )
     if config.w_free_skate > 0:
-        parts.append(f"`w_free_skate = {config.w_free_skate:g}` (the planted-foot speed loss on that decode)")
+        where = "its own" if config.free_skate_contacts == "own" else "the data's"
+        parts.append(
+            f"`w_free_skate = {config.w_free_skate:g}` (the planted-foot speed loss on that decode, "
+            f"where {where} feet are planted)"
+        )
     if config.contrastive_pull != 1.0:
         parts.append(
             f"`contrastive_pull = {config.contrastive_pull:g}` (the same-action pull of the contrastive term)"

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import ClassVar
 
 import numpy as np
 import torch
@@ -70,13 +71,12 @@ class A2mConfig(ModelConfig):
     POSITIVE += ("batch_size", "epoch_size", "grad_clip")
     NON_NEGATIVE = ("kl_weight", "trajectory_weight", "weight_decay", "epochs", "code_dim")
     RATES = ("tf_rate",)
+    CHOICES: ClassVar[dict[str, tuple[str, ...]]] = {"pose_rep": POSE_REPS}
     ARCH = "a2m"
     BEFORE = _BEFORE
 
     def check(self) -> None:
-        """Known pose representation; a code space no larger than the z sequence."""
-        if self.pose_rep not in POSE_REPS:
-            raise ConfigError(f"unknown pose_rep {self.pose_rep!r}; choose one of {', '.join(POSE_REPS)}")
+        """A code space no larger than the z sequence."""
         if self.code_dim > self.window * self.latent_dim:
             raise ConfigError(f"code_dim {self.code_dim} exceeds window × latent_dim")
 

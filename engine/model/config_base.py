@@ -21,6 +21,7 @@ class ModelConfig:
     POSITIVE: ClassVar[tuple[str, ...]] = ()
     NON_NEGATIVE: ClassVar[tuple[str, ...]] = ()
     RATES: ClassVar[tuple[str, ...]] = ()
+    CHOICES: ClassVar[dict[str, tuple[str, ...]]] = {}
     ARCH: ClassVar[str] = ""
     BEFORE: ClassVar[dict[str, Any]] = {}
 
@@ -35,6 +36,9 @@ class ModelConfig:
         for name in self.RATES:
             if not 0.0 <= getattr(self, name) <= 1.0:
                 raise ConfigError(f"{name} must lie in [0, 1], got {getattr(self, name)!r}")
+        for name, choices in self.CHOICES.items():
+            if getattr(self, name) not in choices:
+                raise ConfigError(f"{name} must be one of {', '.join(choices)}, got {getattr(self, name)!r}")
         if getattr(self, "window", 2) < 2:
             raise ConfigError(f"window must be at least 2 frames, got {self.window}")
         if getattr(self, "arch", self.ARCH) != self.ARCH:

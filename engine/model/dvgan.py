@@ -21,6 +21,7 @@ from __future__ import annotations
 import math
 import re
 from dataclasses import dataclass
+from typing import ClassVar
 
 import torch
 import torch.nn.functional as F  # noqa: N812
@@ -79,12 +80,11 @@ class DvganConfig(ModelConfig):
     POSITIVE += ("critic_steps", "lr", "batch_size", "epoch_size", "max_prefix")
     NON_NEGATIVE = ("n_features", "gp_weight", "epochs")
     RATES = ("prefix_rate",)
+    CHOICES: ClassVar[dict[str, tuple[str, ...]]] = {"generator": GENERATORS}
     ARCH = "dvgan"
 
     def check(self) -> None:
-        """A known generator; a prefix shorter than the window; CNN windows a power of two."""
-        if self.generator not in GENERATORS:
-            raise ConfigError(f"unknown generator {self.generator!r}; choose one of {', '.join(GENERATORS)}")
+        """A prefix shorter than the window; CNN windows a power of two."""
         if self.max_prefix >= self.window:
             raise ConfigError(f"max_prefix {self.max_prefix} must be shorter than the window {self.window}")
         if self.generator == "cnn" and self.window & (self.window - 1):

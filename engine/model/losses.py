@@ -8,6 +8,7 @@ import torch
 from torch import Tensor
 
 from engine.model.config import OdmoConfig
+from engine.motion.contact import HEIGHT_TOL
 
 LOSS_TERMS = (
     "recon",
@@ -130,6 +131,15 @@ def skate_loss(feet: Tensor, labels: Tensor, mask: Tensor, fps: float) -> Tensor
     return (speed2 * planted).sum() / planted.sum().clamp(min=1.0)
 
 
+def own_contacts(feet: Tensor, rest_heights: Sequence[float], mask: Tensor) -> Tensor:
+    """Contact labels (B, T, F) of generated foot joints ``feet`` (B, T, F, 3) by the height rule of the
+    data's labels alone: within HEIGHT_TOL of the joint's resting height over the window's floor (the
+    lowest any foot comes to its resting height in real frames), so a floating window still has contacts."""
+    above = feet[..., 1] - feet.new_tensor(list(rest_heights))
+    floor = above.masked_fill(~mask.unsqueeze(-1), float("inf")).amin(dim=(1, 2), keepdim=True)
+    return (above - floor <= HEIGHT_TOL).to(feet.dtype).detach()
+
+
 def contrastive_loss(
     mu_a: Tensor, mu_b: Tensor, same: Tensor, alpha: float, pull_weight: float = 1.0
 ) -> Tensor:
@@ -210,7 +220,10 @@ def odmo_losses(
         terms["contact"] = contact_loss(contact_logits, contacts, mask)
         terms["skate"] = skate_loss(pred_joints[:, :, feet], contacts, mask, config.fps)
         if free_joints is not None:
-            terms["free_skate"] = skate_loss(free_joints[:, :, feet], contacts, mask, config.fps)
+            free_feet = free_joints[:, :, feet]
+            if config.free_skate_contacts == "own":
+                contacts = own_contacts(free_feet, config.foot_heights or (0.0,) * len(feet), mask)
+            terms["free_skate"] = skate_loss(free_feet, contacts, mask, config.fps)
     weights = {
         "recon": config.w_recon,
         "traj": config.w_traj,

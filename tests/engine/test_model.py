@@ -10,7 +10,9 @@ import torch
 from engine.errors import ConfigError, ModelFormatError
 from engine.model import generator as generator_module
 from engine.model import odmo as odmo_module
+from engine.model.a2m import A2mConfig
 from engine.model.config import OdmoConfig
+from engine.model.dvgan import DvganConfig
 from engine.model.losses import (
     LOG_SPEED_FLOOR,
     SPECTRUM_FLOOR,
@@ -19,6 +21,7 @@ from engine.model.losses import (
     masked_mse,
     mean_speeds,
     odmo_losses,
+    own_contacts,
     prior_loss,
     skate_loss,
     spectrum_joints,
@@ -429,6 +432,53 @@ def test_free_skate_is_taken_on_the_free_running_decode() -> None:
     torch.testing.assert_close(terms["total"], expected)
 
 
+@pytest.mark.parametrize(
+    ("config", "field", "message"),
+    [
+        (OdmoConfig, "scheduled_sampling", "one_step, free_run"),
+        (A2mConfig, "pose_rep", "lie, joints"),
+        (DvganConfig, "generator", "rnn, cnn"),
+    ],
+)
+def test_every_kind_names_the_choices_of_a_field_it_does_not_know(config, field, message) -> None:
+    with pytest.raises(ConfigError, match=f"{field} must be one of {message}, got 'bogus'"):
+        config(n_actions=3, n_joints=5, **{field: "bogus"})
+
+
+def test_own_contacts_follow_the_decode_lowered_to_its_floor() -> None:
+    # two feet resting at 10 cm (ankle) and 4 cm (toe); the whole window floats 50 cm up
+    feet = torch.zeros(1, 4, 2, 3)
+    feet[..., 0, 1], feet[..., 1, 1] = 0.6, 0.54
+    feet[0, 1, 0, 1] = 0.62  # 2 cm up: still planted
+    feet[0, 2, 0, 1] = 0.65  # 5 cm up: lifted
+    feet[0, 3, 1, 1] = 0.40  # the toe 14 cm lower in a padded frame: not the floor
+    mask = torch.tensor([[True, True, True, False]])
+    labels = own_contacts(feet, (0.1, 0.04), mask)
+    assert labels[0, :3].tolist() == [[1.0, 1.0], [1.0, 1.0], [0.0, 1.0]]
+
+
+def test_free_skate_on_own_contacts_holds_the_feet_the_decode_plants() -> None:
+    cfg = _model(
+        w_skate=0.0, w_free_skate=1.0, foot_contact=True, foot_joints=(1, 2), foot_heights=(0.0, 0.0),
+        free_skate_contacts="own",
+    ).config  # fmt: skip
+    joints, mask = torch.zeros(2, T, J, 3), torch.ones(2, T, dtype=torch.bool)
+    free = joints.clone()
+    free[:, :, 1, 0] = torch.arange(T, dtype=torch.float32) * 0.05  # foot 1 slides on the floor at 1 m/s
+    free[:, :, 2, 0] = torch.arange(T, dtype=torch.float32) * 0.10  # foot 2 swings 20 cm up at 2 m/s
+    free[:, :, 2, 1] = 0.2
+    kw = {"mu": torch.zeros(2, 20), "logvar": torch.zeros(2, 20), "same": torch.tensor([True]), "root": 0}
+    terms = odmo_losses(cfg, joints=joints, trajectory=joints[:, :, 0], mask=mask, pred_joints=joints,
+                        pred_trajectory=joints[:, :, 0], contact_logits=torch.zeros(2, T, 2),
+                        contacts=torch.zeros(2, T, 2), free_joints=free, **kw)  # fmt: skip
+    torch.testing.assert_close(terms["free_skate"], torch.tensor(1.0))  # the data's feet are never planted
+    data_rule = OdmoConfig(**(cfg.to_dict() | {"free_skate_contacts": "data"}))
+    terms = odmo_losses(data_rule, joints=joints, trajectory=joints[:, :, 0], mask=mask, pred_joints=joints,
+                        pred_trajectory=joints[:, :, 0], contact_logits=torch.zeros(2, T, 2),
+                        contacts=torch.zeros(2, T, 2), free_joints=free, **kw)  # fmt: skip
+    torch.testing.assert_close(terms["free_skate"], torch.tensor(0.0))
+
+
 def test_contrastive_known_values() -> None:
     mu_a = torch.zeros(4, 2)
     mu_b = torch.tensor([[0.3, 0.0], [1.0, 0.0], [3.0, 4.0], [6.0, 0.0]])
@@ -488,6 +538,8 @@ def test_config_round_trip_and_validation() -> None:
         OdmoConfig(n_actions=10, n_joints=21, speed_error="relative")
     old = {k: v for k, v in cfg.to_dict().items() if k != "speed_error"}  # a model.json from before it
     assert OdmoConfig.from_dict(old).speed_error == "absolute"
+    with pytest.raises(ConfigError, match="free_skate_contacts must be one of data, own, got 'both'"):
+        OdmoConfig(n_actions=10, n_joints=21, free_skate_contacts="both")
     assert cfg.teacher_forcing(0) == 1.0 and math.isclose(cfg.teacher_forcing(10_000), 0.3)
     assert math.isclose(cfg.teacher_forcing(cfg.tf_decay_epochs // 2), 0.65)
 
