@@ -315,6 +315,10 @@ def model_switches(config: OdmoConfig) -> str:
             f"`w_free_skate = {config.w_free_skate:g}` (the planted-foot speed loss on that decode, "
             f"where {where} feet are planted)"
         )
+    if config.w_foot_height > 0:
+        parts.append(
+            f"`w_foot_height = {config.w_foot_height:g}` (a loss on that decode's sorted foot heights)"
+        )
     if config.contrastive_pull != 1.0:
         parts.append(
             f"`contrastive_pull = {config.contrastive_pull:g}` (the same-action pull of the contrastive term)"

@@ -24,6 +24,7 @@ _BEFORE_SWITCHES = {
     "w_free_skate": 0.0,
     "spectrum_legs": True,
     "free_skate_contacts": "data",
+    "w_foot_height": 0.0,
 }
 SCHEDULED_SAMPLING = ("one_step", "free_run")
 #: The paper's model in one setting, ``OdmoConfig(n_actions, n_joints, **PAPER)``: every project change off.
@@ -64,8 +65,9 @@ class OdmoConfig(ModelConfig):
     quick wave of one mean speed differ there). ``w_free_skate`` weights the skate loss on that decode's
     feet (the motion sampling shows; ``w_skate`` sees the teacher-forced one), where the data's feet are
     planted (``free_skate_contacts`` "data") or where that decode's own are ("own": a free decode's
-    stride drifts out of step with the data's). ``spectrum_legs`` False leaves the legs out of the
-    spectrum term.
+    stride drifts out of step with the data's). ``w_foot_height`` weights the squared error of that
+    decode's sorted foot heights (how long each foot spends at each height, phase-free).
+    ``spectrum_legs`` False leaves the legs out of the spectrum term.
     ``scheduled_sampling`` says where the non-teacher-forced previous poses come from: "one_step" (a
     teacher-forced pass, the default) or "free_run" (a free-running decode, as the reference's per-step
     loop does; measured worse on the bundled recipe, see the README).
@@ -117,13 +119,14 @@ class OdmoConfig(ModelConfig):
     w_free_skate: float = 0.0
     spectrum_legs: bool = True
     free_skate_contacts: str = "data"
+    w_foot_height: float = 0.0
     arch: str = "odmo"
 
     POSITIVE = ("n_actions", "n_joints", "window", "fps", "latent_dim", "enc_hidden", "enc_fc", "traj_hidden")
     POSITIVE += ("motion_hidden", "prior_sigma2", "lr", "batch_size", "epoch_size")
     NON_NEGATIVE = ("w_recon", "w_traj", "w_consistency", "w_contrastive", "w_prior", "traj_y_weight")
     NON_NEGATIVE += ("w_raw", "w_contact", "w_velocity", "contrastive_pull", "epochs", "tf_decay_epochs")
-    NON_NEGATIVE += ("w_skate", "w_free", "w_speed", "w_spectrum", "w_free_skate")
+    NON_NEGATIVE += ("w_skate", "w_free", "w_speed", "w_spectrum", "w_free_skate", "w_foot_height")
     RATES = ("tf_start", "tf_end")
     CHOICES: ClassVar[dict[str, tuple[str, ...]]] = {
         "train_precision": TRAIN_PRECISIONS,

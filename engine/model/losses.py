@@ -24,6 +24,7 @@ LOSS_TERMS = (
     "speed",
     "spectrum",
     "free_skate",
+    "foot_height",
 )
 
 
@@ -135,9 +136,25 @@ def own_contacts(feet: Tensor, rest_heights: Sequence[float], mask: Tensor) -> T
     """Contact labels (B, T, F) of generated foot joints ``feet`` (B, T, F, 3) by the height rule of the
     data's labels alone: within HEIGHT_TOL of the joint's resting height over the window's floor (the
     lowest any foot comes to its resting height in real frames), so a floating window still has contacts."""
+    return (_above_floor(feet, rest_heights, mask) <= HEIGHT_TOL).to(feet.dtype).detach()
+
+
+def _above_floor(feet: Tensor, rest_heights: Sequence[float], mask: Tensor) -> Tensor:
+    """Heights (B, T, F) of foot joints over their resting heights, less the window's floor: the lowest
+    any foot comes to its resting height in real frames."""
     above = feet[..., 1] - feet.new_tensor(list(rest_heights))
-    floor = above.masked_fill(~mask.unsqueeze(-1), float("inf")).amin(dim=(1, 2), keepdim=True)
-    return (above - floor <= HEIGHT_TOL).to(feet.dtype).detach()
+    return above - above.masked_fill(~mask.unsqueeze(-1), float("inf")).amin(dim=(1, 2), keepdim=True)
+
+
+def foot_height_loss(pred: Tensor, target: Tensor, rest_heights: Sequence[float], mask: Tensor) -> Tensor:
+    """Squared error (m²) of each foot joint's sorted heights over its window's floor in ``pred`` against
+    ``target`` (B, T, F, 3): how long each foot spends at each height, whatever the phase, so feet
+    neither float nor skim where the data's step. Padded frames sort last in both and cost nothing."""
+    pad = ~mask.unsqueeze(-1)
+    pred_h = _above_floor(pred, rest_heights, mask).masked_fill(pad, 1e3).sort(dim=1).values
+    real_h = _above_floor(target, rest_heights, mask).masked_fill(pad, 1e3).sort(dim=1).values
+    m = mask.to(pred.dtype).sort(dim=1, descending=True).values.unsqueeze(-1).expand_as(pred_h)
+    return ((pred_h - real_h).square() * m).sum() / m.sum().clamp(min=1.0)
 
 
 def contrastive_loss(
@@ -208,6 +225,7 @@ def odmo_losses(
         "speed": zero,
         "spectrum": zero,
         "free_skate": zero,
+        "foot_height": zero,
     }
     if free_joints is not None:
         terms["free"] = masked_mse(free_joints, joints, mask)
@@ -220,10 +238,12 @@ def odmo_losses(
         terms["contact"] = contact_loss(contact_logits, contacts, mask)
         terms["skate"] = skate_loss(pred_joints[:, :, feet], contacts, mask, config.fps)
         if free_joints is not None:
-            free_feet = free_joints[:, :, feet]
+            free_feet, rest = free_joints[:, :, feet], config.foot_heights or (0.0,) * len(feet)
+            terms["foot_height"] = foot_height_loss(free_feet, joints[:, :, feet], rest, mask)
             if config.free_skate_contacts == "own":
-                contacts = own_contacts(free_feet, config.foot_heights or (0.0,) * len(feet), mask)
+                contacts = own_contacts(free_feet, rest, mask)
             terms["free_skate"] = skate_loss(free_feet, contacts, mask, config.fps)
+    free_feet_on = free_joints is not None and contact_logits is not None
     weights = {
         "recon": config.w_recon,
         "traj": config.w_traj,
@@ -237,7 +257,8 @@ def odmo_losses(
         "free": config.w_free if free_joints is not None else 0.0,
         "speed": config.w_speed if free_joints is not None else 0.0,
         "spectrum": config.w_spectrum if free_joints is not None else 0.0,
-        "free_skate": config.w_free_skate if free_joints is not None and contact_logits is not None else 0.0,
+        "free_skate": config.w_free_skate if free_feet_on else 0.0,
+        "foot_height": config.w_foot_height if free_feet_on else 0.0,
     }
     terms["total"] = sum(weights[k] * terms[k] for k in LOSS_TERMS if weights[k] > 0)
     return terms

@@ -104,7 +104,8 @@ def _forward(
     tf_noise = None if noise is None else noise.tf
     out = model.decode_full(z, data.actions, end, prev_truth=truth, tf_rate=tf_rate, tf_noise=tf_noise)
     free = None
-    if config.w_free > 0 or config.w_speed > 0 or config.w_spectrum > 0 or config.w_free_skate > 0:
+    free_terms = ("w_free", "w_speed", "w_spectrum", "w_free_skate", "w_foot_height")
+    if any(getattr(config, name) > 0 for name in free_terms):
         free = out.joints if truth is None else model.decode_full(z, data.actions, end).joints
     return odmo_losses(
         config,

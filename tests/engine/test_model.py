@@ -18,6 +18,7 @@ from engine.model.losses import (
     SPECTRUM_FLOOR,
     amplitude_spectra,
     contrastive_loss,
+    foot_height_loss,
     masked_mse,
     mean_speeds,
     odmo_losses,
@@ -477,6 +478,25 @@ def test_free_skate_on_own_contacts_holds_the_feet_the_decode_plants() -> None:
                         pred_trajectory=joints[:, :, 0], contact_logits=torch.zeros(2, T, 2),
                         contacts=torch.zeros(2, T, 2), free_joints=free, **kw)  # fmt: skip
     torch.testing.assert_close(terms["free_skate"], torch.tensor(0.0))
+
+
+def test_foot_height_loss_compares_time_at_each_height_whatever_the_phase() -> None:
+    t = torch.arange(20, dtype=torch.float32)
+    target = torch.zeros(1, 20, 2, 3)
+    target[0, :, 0, 1] = 0.1 + 0.1 * torch.sin(t)  # a foot resting at 10 cm that lifts and drops
+    target[0, :, 1, 1] = 0.04 + 0.05 * (t % 4 == 0)  # a toe at 4 cm, lifted 5 cm every fourth frame
+    mask = torch.ones(1, 20, dtype=torch.bool)
+    rest = (0.1, 0.04)
+    out_of_step = target.roll(7, dims=1)
+    out_of_step[..., 1] += 0.5  # later and half a metre up: the floor is the window's own
+    torch.testing.assert_close(foot_height_loss(out_of_step, target, rest, mask), torch.tensor(0.0))
+    floating = target.clone()
+    floating[0, :, 1, 1] = 0.09  # the toe never comes down: 5 cm too high in 15 of 20 frames, per foot
+    expected = torch.tensor(15 * 0.05**2 / 40)
+    torch.testing.assert_close(foot_height_loss(floating, target, rest, mask), expected)
+    floating[0, 15:] = 5.0  # padded frames cost nothing
+    mask[0, 15:] = False
+    assert foot_height_loss(floating, target, rest, mask) < expected
 
 
 def test_contrastive_known_values() -> None:
