@@ -113,6 +113,7 @@ COLUMNS = (
     ("Floating →", "float_share", 3),
     ("Hand speed (m/s) →", "hand_speed_m_s", 3),
     ("Jerk (m/s³) →", "jerk_m_s3", 0),
+    ("Heading (°) →", "heading_error_deg", 1),
 )
 # The unconditional table (MoDi): (header, metric key, decimals).
 UNCONDITIONAL_COLUMNS = (
@@ -141,6 +142,7 @@ PER_ACTION_COLUMNS = (
     ("bone cv", "bone_length_cv", 4),
     ("foot skate (m/s)", "foot_skate_m_s", 3),
     ("floating", "float_share", 2),
+    ("heading (°)", "heading_error_deg", 1),
 )
 
 

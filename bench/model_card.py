@@ -32,6 +32,7 @@ METRICS = (
     ("foot_speed_m_s", "Mean foot speed (m/s)"),
     ("foot_amplitude_m", "Foot oscillation amplitude (m)"),
     ("jerk_m_s3", "Mean jerk (m/s³)"),
+    ("heading_error_deg", "Heading: body's facing line against its direction of travel (degrees)"),
 )
 #: Per-action columns of the card: (metric, heading, format).
 PER_ACTION = (
@@ -44,6 +45,7 @@ PER_ACTION = (
     ("hand_amplitude_m", "hand amp. (m)", "{:.3f}"),
     ("foot_speed_m_s", "foot speed (m/s)", "{:.2f}"),
     ("jerk_m_s3", "jerk (m/s³)", "{:.0f}"),
+    ("heading_error_deg", "heading (°)", "{:.1f}"),
 )
 SKATE_FLOOR = 0.02  # m/s: the planted-foot target for actions that stand still
 

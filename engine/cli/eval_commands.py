@@ -47,6 +47,7 @@ PER_ACTION_COLUMNS = (
     ("jerk_m_s3", "jerk"),
     ("bone_length_cv", "bone cv"),
     ("foot_skate_m_s", "skate"),
+    ("heading_error_deg", "heading"),
 )
 
 

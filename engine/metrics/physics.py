@@ -1,10 +1,16 @@
-"""Physical plausibility of joint positions: bone lengths, foot skate, floor contact, limb motion, jerk.
+"""Physical plausibility of joint positions: bone lengths, foot skate, floor contact, limb motion, jerk,
+heading.
 
 Every function takes clips as (T, J, 3) arrays in metres, y up, the floor at y = 0.
 
 Contact rule of ``foot_skate``: a foot joint is planted in a frame when it lies within ``PLANTED_TOL``
 (3 cm) of the clip's lowest foot height (the lowest any foot joint reaches in that clip), in that frame
 and the next; no speed threshold, since a speed threshold would hide the sliding it measures.
+
+Heading (``heading_error``): the direction of travel is the root's horizontal displacement over
+``HEADING_SPAN`` (0.5 s, longer than a stride's sway), the body's facing line the perpendicular of the
+axis between the two hips (the top joints of the leg chains) at the span's middle; only spans where the
+root moves at ``MOVING_SPEED`` (0.5 m/s) or more count.
 """
 
 from __future__ import annotations
@@ -13,13 +19,15 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from engine.motion.contact import foot_joints, hand_joints
+from engine.motion.contact import foot_joints, hand_joints, leg_chains
 from engine.motion.skeleton import Skeleton
 
 PLANTED_TOL = 0.03
 PENETRATION_TOL = 0.02
 FLOAT_HEIGHT = 0.10
 FLOAT_SECONDS = 0.5
+HEADING_SPAN = 0.5
+MOVING_SPEED = 0.5
 
 
 def bone_length_cv(joints: np.ndarray, parents: np.ndarray) -> float:
@@ -98,9 +106,33 @@ def mean_jerk(joints: np.ndarray, fps: float) -> float:
     return float(np.linalg.norm(np.diff(pos, n=3, axis=0), axis=-1).mean() * fps**3)
 
 
+def heading_errors(joints: np.ndarray, hips: tuple[int, int], root: int, fps: float) -> np.ndarray:
+    """Angles (degrees, 0..90) between the body's facing line and its direction of travel in one clip,
+    one per moving span (see the module docstring): 0 walking forwards or backwards, 90 side-stepping."""
+    pos = np.asarray(joints, dtype=np.float64)
+    span = max(1, round(HEADING_SPAN * fps))
+    if len(pos) <= span:
+        return np.zeros(0)
+    travel = pos[span:, root, ::2] - pos[:-span, root, ::2]
+    middle = pos[span // 2 : span // 2 + len(travel)]
+    axis = middle[:, hips[0], ::2] - middle[:, hips[1], ::2]
+    norms = np.linalg.norm(travel, axis=-1) * np.linalg.norm(axis, axis=-1)
+    moving = (np.linalg.norm(travel, axis=-1) >= MOVING_SPEED * span / fps) & (norms > 0)
+    cos = np.abs(np.einsum("ti,ti->t", travel, axis))[moving] / norms[moving]
+    return np.degrees(np.arcsin(np.clip(cos, 0.0, 1.0)))
+
+
+def heading_error(clips: Sequence[np.ndarray], hips: tuple[int, int], root: int, fps: float) -> float:
+    """Mean ``heading_errors`` (degrees) over every moving span of ``clips``; 0 when none moves."""
+    angles = np.concatenate([heading_errors(c, hips, root, fps) for c in clips] or [np.zeros(0)])
+    return float(angles.mean()) if angles.size else 0.0
+
+
 def physics_metrics(clips: Sequence[np.ndarray], skeleton: Skeleton, fps: float) -> dict[str, float]:
-    """Every plausibility figure of a set of clips (feet and hands found by name; left out without)."""
+    """Every plausibility figure of a set of clips (feet and hands found by name, the heading from two leg
+    chains; each left out without)."""
     feet, hands, root = foot_joints(skeleton), hand_joints(skeleton), skeleton.root
+    legs = leg_chains(skeleton)
     out = {"bone_length_cv": median_bone_length_cv(clips, skeleton.parents)}
     if feet:
         out["foot_skate_m_s"] = foot_skate(clips, feet, fps)
@@ -113,4 +145,7 @@ def physics_metrics(clips: Sequence[np.ndarray], skeleton: Skeleton, fps: float)
                 np.mean([oscillation_amplitude(c, limbs, root) for c in clips])
             )
     out["jerk_m_s3"] = float(np.nanmean([mean_jerk(c, fps) for c in clips]))
+    if len(legs) == 2:  # travel is the pelvis's (the hips' parent): a rig's root may stay at the origin
+        hips = (legs[0][0], legs[1][0])
+        out["heading_error_deg"] = heading_error(clips, hips, int(skeleton.parents[hips[0]]), fps)
     return out

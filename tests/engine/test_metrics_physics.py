@@ -4,9 +4,11 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from scipy.spatial.transform import Rotation
 
 from engine.metrics import physics
 from engine.motion.contact import contact_labels, foot_joints, hand_joints, leg_chains
+from engine.motion.formats import read_motion
 from engine.motion.skeleton import Skeleton
 
 FPS = 20.0
@@ -122,3 +124,62 @@ def test_contact_labels_need_low_and_slow() -> None:
     assert labels.shape == (40, 2)
     assert not labels[:, 0].any()
     assert labels[:20, 1].all() and not labels[20:, 1].any()
+
+
+def _walker(crab_deg: float, speed: float = 1.2, sway: float = 0.0, t: int = 40) -> np.ndarray:
+    """Root (0) and two hips (1, 2) walking along +x, the hip axis turned ``crab_deg`` from +z, the root
+    swaying ``sway`` metres sideways at 2 Hz (a stride's sway)."""
+    time = np.arange(t) / FPS
+    clip = np.zeros((t, 3, 3))
+    clip[:, 0, 0] = speed * time
+    clip[:, 0, 2] = sway * np.sin(2 * np.pi * 2.0 * time)
+    clip[:, 0, 1] = 0.9
+    half = 0.1 * np.array([np.sin(np.radians(crab_deg)), 0.0, np.cos(np.radians(crab_deg))])
+    clip[:, 1], clip[:, 2] = clip[:, 0] + half, clip[:, 0] - half
+    return clip
+
+
+def test_heading_is_the_angle_between_facing_and_travel() -> None:
+    assert physics.heading_error([_walker(0.0)], (1, 2), 0, FPS) == pytest.approx(0.0, abs=1e-9)
+    assert physics.heading_error([_walker(30.0)], (1, 2), 0, FPS) == pytest.approx(30.0)
+    assert physics.heading_error([_walker(-30.0)], (2, 1), 0, FPS) == pytest.approx(30.0)  # either hip first
+    assert physics.heading_error([_walker(90.0)], (1, 2), 0, FPS) == pytest.approx(90.0)  # side-stepping
+    # a 5 cm sway at 2 Hz is a stride's, not a heading: over half a second it cancels
+    assert physics.heading_error([_walker(0.0, sway=0.05)], (1, 2), 0, FPS) < 1.0
+    # standing still has no direction of travel; slow spans and standing clips do not count
+    still = _walker(45.0, speed=0.0)
+    assert physics.heading_errors(still, (1, 2), 0, FPS).size == 0
+    assert physics.heading_error([still, _walker(10.0)], (1, 2), 0, FPS) == pytest.approx(10.0)
+    assert physics.heading_error([still], (1, 2), 0, FPS) == 0.0
+
+
+def test_heading_is_in_the_row_of_a_skeleton_with_two_legs() -> None:
+    names = ("Hips", "UpperLeg_L", "LowerLeg_L", "Foot_L", "UpperLeg_R", "LowerLeg_R", "Foot_R")
+    parents = np.array([-1, 0, 1, 2, 0, 4, 5])
+    offsets = np.array(
+        [[0, 0.9, 0], [0, 0, 0.1], [0, -0.4, 0], [0, -0.4, 0], [0, 0, -0.1], [0, -0.4, 0], [0, -0.4, 0]]
+    )
+    walk = np.zeros((40, 7, 3))
+    walk[:, [0, 1, 4]] = _walker(20.0)
+    walk[:, [2, 3]] = walk[:, [1]] - [0, 0.4, 0]
+    walk[:, [5, 6]] = walk[:, [4]] - [0, 0.4, 0]
+    row = physics.physics_metrics([walk], Skeleton(names, parents, offsets), FPS)
+    assert row["heading_error_deg"] == pytest.approx(20.0)
+
+
+def test_real_walks_face_where_they_go_and_a_turned_body_does_not(bandai_dir) -> None:
+    clips = [read_motion(p) for p in sorted((bandai_dir / "data").glob("dataset-2_walk_*.bvh"))[:6]]
+    skel = clips[0].skeleton
+    (hip_a, *_), (hip_b, *_) = leg_chains(skel)
+    root = int(skel.parents[hip_a])  # the pelvis: the raw files' root joint stays at the origin
+    real = physics.heading_error([c.joints for c in clips], (hip_a, hip_b), root, clips[0].fps)
+    assert real < 12.0  # measured 7.5° over 60 walks
+    turned = []
+    for c in clips:  # the body turned 30° about its root, the root's path kept: a crab-walk
+        local = c.joints - c.joints[:, root : root + 1]
+        turned.append(
+            Rotation.from_euler("y", 30, degrees=True).apply(local.reshape(-1, 3)).reshape(local.shape)
+        )
+        turned[-1] += c.joints[:, root : root + 1]
+    crab = physics.heading_error(turned, (hip_a, hip_b), root, clips[0].fps)
+    assert crab > real + 15.0  # measured 28.0 against 8.4
