@@ -319,6 +319,8 @@ def model_switches(config: OdmoConfig) -> str:
         parts.append(
             f"`w_foot_height = {config.w_foot_height:g}` (a loss on that decode's sorted foot heights)"
         )
+    if config.w_heading > 0:
+        parts.append(f"`w_heading = {config.w_heading:g}` (a loss on that decode's heading against its path)")
     if config.contrastive_pull != 1.0:
         parts.append(
             f"`contrastive_pull = {config.contrastive_pull:g}` (the same-action pull of the contrastive term)"

@@ -3,10 +3,12 @@
 from __future__ import annotations
 
 from collections.abc import Sequence
+from dataclasses import dataclass
 
 import torch
 from torch import Tensor
 
+from engine.metrics.physics import HEADING_SPAN, MOVING_SPEED
 from engine.model.config import OdmoConfig
 from engine.motion.contact import HEIGHT_TOL
 
@@ -25,6 +27,7 @@ LOSS_TERMS = (
     "spectrum",
     "free_skate",
     "foot_height",
+    "heading",
 )
 
 
@@ -104,6 +107,29 @@ def spectrum_joints(config: OdmoConfig, parents: Sequence[int], root: int) -> li
     return sorted(joints)
 
 
+def hip_joints(config: OdmoConfig, parents: Sequence[int]) -> tuple[int, int] | None:
+    """The two hips (grandparents of the top-most foot joints of the config's two legs), or None."""
+    feet = set(config.foot_joints)
+    tops = [j for j in config.foot_joints if parents[j] not in feet]
+    hips = tuple(int(parents[parents[j]]) for j in tops if parents[j] >= 0 and parents[parents[j]] >= 0)
+    return (hips[0], hips[1]) if len(hips) == 2 and hips[0] != hips[1] else None
+
+
+@dataclass(frozen=True)
+class LossJoints:
+    """Joints the loss terms read, found once from the skeleton: the root, the joints of the spectrum
+    term and the two hips of the heading term (None: a rig without two legs)."""
+
+    root: int
+    spectrum_on: tuple[int, ...]
+    hips: tuple[int, int] | None
+
+    @classmethod
+    def of(cls, config: OdmoConfig, parents: Sequence[int], root: int) -> LossJoints:
+        """The joints of ``config``'s terms on a skeleton of ``parents``."""
+        return cls(root, tuple(spectrum_joints(config, parents, root)), hip_joints(config, parents))
+
+
 def spectrum_loss(
     pred: Tensor, target: Tensor, mask: Tensor, root: int, on: Sequence[int] | None = None
 ) -> Tensor:
@@ -157,6 +183,30 @@ def foot_height_loss(pred: Tensor, target: Tensor, rest_heights: Sequence[float]
     return ((pred_h - real_h).square() * m).sum() / m.sum().clamp(min=1.0)
 
 
+def _heading_cosines(joints: Tensor, hips: tuple[int, int], span: int) -> tuple[Tensor, Tensor]:
+    """Cosines (B, S) between the hips' axis at each span's middle and the horizontal travel of the
+    hips' midpoint over ``span`` frames, and that travel (m)."""
+    pelvis = 0.5 * (joints[:, :, hips[0], ::2] + joints[:, :, hips[1], ::2])
+    travel = pelvis[:, span:] - pelvis[:, :-span]
+    middle = joints[:, span // 2 : span // 2 + travel.shape[1]]
+    axis = middle[:, :, hips[0], ::2] - middle[:, :, hips[1], ::2]
+    dist = travel.norm(dim=-1)
+    return (travel * axis).sum(-1) / (dist * axis.norm(dim=-1)).clamp(min=1e-6), dist
+
+
+def heading_loss(pred: Tensor, target: Tensor, mask: Tensor, hips: tuple[int, int], fps: float) -> Tensor:
+    """Squared error of the cosine between the body's hip axis and its direction of travel over
+    HEADING_SPAN (see ``engine.metrics.physics``) in ``pred`` against ``target`` (B, T, J, 3), over the
+    spans where the target moves at MOVING_SPEED or more: 0 when the body faces its path as the data's."""
+    span = max(1, round(HEADING_SPAN * fps))
+    if pred.shape[1] <= span:
+        return pred.new_zeros(())
+    pred_cos, _ = _heading_cosines(pred, hips, span)
+    real_cos, dist = _heading_cosines(target, hips, span)
+    valid = (mask[:, span:] & mask[:, :-span] & (dist >= MOVING_SPEED * span / fps)).to(pred.dtype)
+    return ((pred_cos - real_cos.detach()).square() * valid).sum() / valid.sum().clamp(min=1.0)
+
+
 def contrastive_loss(
     mu_a: Tensor, mu_b: Tensor, same: Tensor, alpha: float, pull_weight: float = 1.0
 ) -> Tensor:
@@ -191,6 +241,7 @@ def odmo_losses(
     contacts: Tensor | None = None,
     free_joints: Tensor | None = None,
     spectrum_on: Sequence[int] | None = None,
+    hips: tuple[int, int] | None = None,
 ) -> dict[str, Tensor]:
     """Every loss term and the weighted ``total``.
 
@@ -207,6 +258,7 @@ def odmo_losses(
         foot joints (None: no contact head).
     free_joints : (2B, T, J, 3) a free-running decode of the same codes (None: no free-running terms).
     spectrum_on : the joints the spectrum term compares (``spectrum_joints``; None: all).
+    hips : the two hips of the heading term (``hip_joints``; None: no heading term).
     """
     axis = torch.tensor([1.0, config.traj_y_weight, 1.0], device=joints.device)
     zero = joints.new_zeros(())
@@ -226,6 +278,7 @@ def odmo_losses(
         "spectrum": zero,
         "free_skate": zero,
         "foot_height": zero,
+        "heading": zero,
     }
     if free_joints is not None:
         terms["free"] = masked_mse(free_joints, joints, mask)
@@ -233,6 +286,8 @@ def odmo_losses(
             free_joints, joints, mask, config.fps, root, log=config.speed_error == "log"
         )
         terms["spectrum"] = spectrum_loss(free_joints, joints, mask, root, spectrum_on)
+        if hips is not None:
+            terms["heading"] = heading_loss(free_joints, joints, mask, hips, config.fps)
     if contact_logits is not None and contacts is not None:
         feet = list(config.foot_joints)
         terms["contact"] = contact_loss(contact_logits, contacts, mask)
@@ -259,6 +314,7 @@ def odmo_losses(
         "spectrum": config.w_spectrum if free_joints is not None else 0.0,
         "free_skate": config.w_free_skate if free_feet_on else 0.0,
         "foot_height": config.w_foot_height if free_feet_on else 0.0,
+        "heading": config.w_heading if free_joints is not None and hips is not None else 0.0,
     }
     terms["total"] = sum(weights[k] * terms[k] for k in LOSS_TERMS if weights[k] > 0)
     return terms

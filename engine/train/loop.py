@@ -15,7 +15,7 @@ import torch
 from engine.errors import ConfigError
 from engine.latent.bank import build_bank
 from engine.model.config import OdmoConfig
-from engine.model.losses import LOSS_TERMS, odmo_losses, spectrum_joints
+from engine.model.losses import LOSS_TERMS, LossJoints, odmo_losses
 from engine.model.odmo import OdmoModel
 from engine.model.precision import bfloat16_autocast, native_bfloat16
 from engine.modelio import save_bank, save_model
@@ -86,14 +86,13 @@ def _forward(
     config: OdmoConfig,
     data: _Tensors,
     same: torch.Tensor,
-    root: int,
-    spectrum_on: list[int],
+    roles: LossJoints,
     *,
     tf_rate: float,
     noise: _Noise | None,
 ) -> dict[str, torch.Tensor]:
     """Loss terms of one batch (anchors then partners); training (``noise`` given) samples z and teacher
-    forces, evaluation (None) decodes the code means free-running; the spectrum term sees ``spectrum_on``."""
+    forces, evaluation (None) decodes the code means free-running; ``roles``: the joints the terms read."""
     mu, logvar = model.encode(data.lmp, data.mask)
     if noise is not None:
         z = mu + torch.exp(0.5 * logvar) * noise.eps
@@ -104,7 +103,7 @@ def _forward(
     tf_noise = None if noise is None else noise.tf
     out = model.decode_full(z, data.actions, end, prev_truth=truth, tf_rate=tf_rate, tf_noise=tf_noise)
     free = None
-    free_terms = ("w_free", "w_speed", "w_spectrum", "w_free_skate", "w_foot_height")
+    free_terms = ("w_free", "w_speed", "w_spectrum", "w_free_skate", "w_foot_height", "w_heading")
     if any(getattr(config, name) > 0 for name in free_terms):
         free = out.joints if truth is None else model.decode_full(z, data.actions, end).joints
     return odmo_losses(
@@ -117,12 +116,13 @@ def _forward(
         mu=mu,
         logvar=logvar,
         same=same,
-        root=root,
+        root=roles.root,
         raw_joints=out.raw if model.projection is not None else None,
         contact_logits=out.contact,
         contacts=data.contacts,
         free_joints=free,
-        spectrum_on=spectrum_on,
+        spectrum_on=roles.spectrum_on,
+        hips=roles.hips,
     )
 
 
@@ -153,9 +153,9 @@ class _Noise:
 class _StepLoss(torch.nn.Module):
     """The model and its training loss as one module, so DistributedDataParallel sees one forward."""
 
-    def __init__(self, model: OdmoModel, root: int, spectrum_on: list[int]) -> None:
+    def __init__(self, model: OdmoModel, roles: LossJoints) -> None:
         super().__init__()
-        self.model, self.root, self.spectrum_on = model, root, spectrum_on
+        self.model, self.roles = model, roles
 
     def forward(
         self, data: _Tensors, same: torch.Tensor, tf_rate: float, noise: _Noise
@@ -166,8 +166,7 @@ class _StepLoss(torch.nn.Module):
             self.model.config,
             data,
             same,
-            self.root,
-            self.spectrum_on,
+            self.roles,
             tf_rate=tf_rate,
             noise=noise,
         )
@@ -207,9 +206,8 @@ class OdmoSteps:
                 f"batch_size {self.config.batch_size} does not split into equal shares of pairs over "
                 f"{ranks.world} processes; use a multiple of {2 * ranks.world}"
             )
-        root = prepared.skeleton.root
-        self.spectrum_on = spectrum_joints(self.config, prepared.skeleton.parents, root)
-        self.loss = parallel(_StepLoss(model, root, self.spectrum_on), ranks)
+        self.roles = LossJoints.of(self.config, prepared.skeleton.parents, prepared.skeleton.root)
+        self.loss = parallel(_StepLoss(model, self.roles), ranks)
 
     def step(self, epoch: int, rng: np.random.Generator, generator: torch.Generator) -> dict[str, float]:
         """One Adam step on a fresh batch of anchors and their partners."""
@@ -242,8 +240,7 @@ class OdmoSteps:
                 self.model,
                 self.config,
                 *self.validation,
-                self.prepared.skeleton.root,
-                self.spectrum_on,
+                self.roles,
                 tf_rate=0.0,
                 noise=None,
             )

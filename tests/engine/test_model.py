@@ -16,9 +16,12 @@ from engine.model.dvgan import DvganConfig
 from engine.model.losses import (
     LOG_SPEED_FLOOR,
     SPECTRUM_FLOOR,
+    LossJoints,
     amplitude_spectra,
     contrastive_loss,
     foot_height_loss,
+    heading_loss,
+    hip_joints,
     masked_mse,
     mean_speeds,
     odmo_losses,
@@ -497,6 +500,53 @@ def test_foot_height_loss_compares_time_at_each_height_whatever_the_phase() -> N
     floating[0, 15:] = 5.0  # padded frames cost nothing
     mask[0, 15:] = False
     assert foot_height_loss(floating, target, rest, mask) < expected
+
+
+def _crab(deg: float, t: int = 20) -> torch.Tensor:
+    """(1, t, 3, 3): a root and two hips walking along +x at 1.2 m/s, the hip axis turned ``deg`` from +z."""
+    clip = torch.zeros(1, t, 3, 3)
+    clip[0, :, :, 0] = 1.2 * torch.arange(t, dtype=torch.float32)[:, None] / 20.0
+    half = 0.1 * torch.tensor([math.sin(math.radians(deg)), 0.0, math.cos(math.radians(deg))])
+    clip[0, :, 1] += half
+    clip[0, :, 2] -= half
+    return clip
+
+
+def test_heading_loss_is_the_squared_cosine_error_of_a_turned_body() -> None:
+    mask = torch.ones(1, 20, dtype=torch.bool)
+    assert float(heading_loss(_crab(0.0), _crab(0.0), mask, (1, 2), 20.0)) < 1e-12
+    expected = math.sin(math.radians(30.0)) ** 2  # cos(hips axis, travel) = sin 30° against 0
+    torch.testing.assert_close(
+        heading_loss(_crab(30.0), _crab(0.0), mask, (1, 2), 20.0), torch.tensor(expected)
+    )
+    still = _crab(0.0)
+    still[..., 0] = still[:, :1, :, 0]  # the data stands still: no travel, no heading to compare
+    assert float(heading_loss(_crab(30.0), still, mask, (1, 2), 20.0)) == 0.0
+    crab = _crab(30.0).requires_grad_()
+    heading_loss(crab, _crab(0.0), mask, (1, 2), 20.0).backward()
+    assert crab.grad is not None and float(crab.grad.abs().sum()) > 0
+
+
+def test_the_heading_term_enters_the_total_with_its_weight_and_needs_hips() -> None:
+    cfg = OdmoConfig(n_actions=2, n_joints=3, w_heading=3.0, w_contrastive=0.0, w_prior=0.0, w_free=0.0)
+    real, mask = _crab(0.0).repeat(2, 1, 1, 1), torch.ones(2, 20, dtype=torch.bool)
+    kw = {"mu": torch.zeros(2, 20), "logvar": torch.zeros(2, 20), "same": torch.tensor([True]), "root": 0}
+    kw |= {"joints": real, "trajectory": real[:, :, 0], "mask": mask, "pred_joints": real}
+    kw |= {"pred_trajectory": real[:, :, 0], "free_joints": _crab(30.0).repeat(2, 1, 1, 1)}
+    terms = odmo_losses(cfg, hips=(1, 2), **kw)
+    torch.testing.assert_close(terms["heading"], torch.tensor(0.25))
+    torch.testing.assert_close(terms["total"], terms["velocity"] * cfg.w_velocity + 3.0 * terms["heading"])
+    assert float(odmo_losses(cfg, **kw)["heading"]) == 0.0  # no hips: no heading term
+
+
+def test_loss_joints_find_the_hips_above_the_feet() -> None:
+    # root 0; spine 1 -> hand 2; leg 3 -> knee 4 -> foot 5 -> toe 6; leg 7 -> knee 8 -> foot 9
+    parents = [-1, 0, 1, 0, 3, 4, 5, 0, 7, 8]
+    cfg = OdmoConfig(n_actions=3, n_joints=10, foot_joints=(5, 6, 9), foot_heights=(0.1, 0.05, 0.1))
+    assert hip_joints(cfg, parents) == (3, 7)
+    assert LossJoints.of(cfg, parents, 0) == LossJoints(0, tuple(range(10)), (3, 7))
+    one_leg = OdmoConfig(n_actions=3, n_joints=10, foot_joints=(5, 6), foot_heights=(0.1, 0.05))
+    assert hip_joints(one_leg, parents) is None
 
 
 def test_contrastive_known_values() -> None:
