@@ -161,15 +161,7 @@ class _StepLoss(torch.nn.Module):
         self, data: _Tensors, same: torch.Tensor, tf_rate: float, noise: _Noise
     ) -> dict[str, torch.Tensor]:
         """The loss terms of a training batch."""
-        return _forward(
-            self.model,
-            self.model.config,
-            data,
-            same,
-            self.roles,
-            tf_rate=tf_rate,
-            noise=noise,
-        )
+        return _forward(self.model, self.model.config, data, same, self.roles, tf_rate=tf_rate, noise=noise)
 
 
 class OdmoSteps:
