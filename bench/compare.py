@@ -114,6 +114,7 @@ COLUMNS = (
     ("Hand speed (m/s) →", "hand_speed_m_s", 3),
     ("Jerk (m/s³) →", "jerk_m_s3", 0),
     ("Heading (°) →", "heading_error_deg", 1),
+    ("Torso twist (°) →", "torso_twist_deg", 1),
 )
 # The unconditional table (MoDi): (header, metric key, decimals).
 UNCONDITIONAL_COLUMNS = (
@@ -143,6 +144,7 @@ PER_ACTION_COLUMNS = (
     ("foot skate (m/s)", "foot_skate_m_s", 3),
     ("floating", "float_share", 2),
     ("heading (°)", "heading_error_deg", 1),
+    ("twist (°)", "torso_twist_deg", 1),
 )
 
 

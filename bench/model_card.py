@@ -33,6 +33,7 @@ METRICS = (
     ("foot_amplitude_m", "Foot oscillation amplitude (m)"),
     ("jerk_m_s3", "Mean jerk (m/s³)"),
     ("heading_error_deg", "Heading: body's facing line against its direction of travel (degrees)"),
+    ("torso_twist_deg", "Torso twist: shoulders' axis against the hips' (degrees, mean absolute)"),
 )
 #: Per-action columns of the card: (metric, heading, format).
 PER_ACTION = (
@@ -46,6 +47,7 @@ PER_ACTION = (
     ("foot_speed_m_s", "foot speed (m/s)", "{:.2f}"),
     ("jerk_m_s3", "jerk (m/s³)", "{:.0f}"),
     ("heading_error_deg", "heading (°)", "{:.1f}"),
+    ("torso_twist_deg", "twist (°)", "{:.1f}"),
 )
 SKATE_FLOOR = 0.02  # m/s: the planted-foot target for actions that stand still
 

@@ -48,6 +48,7 @@ PER_ACTION_COLUMNS = (
     ("bone_length_cv", "bone cv"),
     ("foot_skate_m_s", "skate"),
     ("heading_error_deg", "heading"),
+    ("torso_twist_deg", "twist"),
 )
 
 

@@ -51,7 +51,7 @@ def a2m_reconstruct(loaded: LoadedA2m, batch: WindowBatch) -> np.ndarray:
 def _reconstruction(
     loaded: LoadedA2m, batch: WindowBatch, classifier: Classifier | None, names: list[str]
 ) -> dict[str, float]:
-    return reconstruction_metrics(a2m_reconstruct(loaded, batch), batch, classifier, names)
+    return reconstruction_metrics(a2m_reconstruct(loaded, batch), batch, classifier, names, loaded.skeleton)
 
 
 def _generated_windows(

@@ -27,7 +27,7 @@ from engine.metrics.unconditional import action_kl, action_shares, kid, precisio
 from engine.modelio import LoadedModel
 from engine.motion.motion import Motion
 from engine.motion.skeleton import Skeleton
-from engine.train.windows import PreparedClips, WindowBatch, crop_windows, prepare_clips
+from engine.train.windows import PreparedClips, WindowBatch, canonicalize, crop_windows, prepare_clips
 
 log = logging.getLogger(__name__)
 
@@ -181,14 +181,20 @@ def reconstruct(loaded: LoadedModel, batch: WindowBatch) -> np.ndarray:
 
 
 def reconstruction_metrics(
-    recon: np.ndarray, batch: WindowBatch, classifier: Classifier | None, names: list[str]
+    recon: np.ndarray,
+    batch: WindowBatch,
+    classifier: Classifier | None,
+    names: list[str],
+    skeleton: Skeleton,
 ) -> dict[str, float]:
     """MPJPE (metres) of reconstructions of a batch's real windows over its real frames, and with a
     classifier the share of them recognised as their true action (a decoder that loses an action's
-    movement shows here, whatever the sampling does)."""
+    movement shows here, whatever the sampling does). The classifier reads each reconstruction in its
+    own canonical frame (``canonicalize``), as it reads generated motions."""
     out = {"reconstruction_error_m": mpjpe(recon, batch.joints, batch.mask)}
     if classifier is not None:
-        pred = _classify(classifier, np.asarray(recon, np.float32), batch.mask, names)[1]
+        own = np.stack([canonicalize(j, skeleton)[0] for j in np.asarray(recon, np.float32)])
+        pred = _classify(classifier, own.astype(np.float32), batch.mask, names)[1]
         out["reconstruction_accuracy"] = recognition_accuracy(pred, np.asarray(batch.actions))
     return out
 
@@ -322,7 +328,8 @@ def evaluate(
 
     def model_metrics(rng: np.random.Generator) -> dict[str, float]:
         recon_batch = crop_windows(prepared, recon_idx, rng)
-        out = reconstruction_metrics(reconstruct(loaded, recon_batch), recon_batch, classifier, names)
+        recon = reconstruct(loaded, recon_batch)
+        out = reconstruction_metrics(recon, recon_batch, classifier, names, loaded.skeleton)
         every = crop_windows(prepared, every_idx, rng)
         out.update(_model_metrics(loaded, every, styles, classifier, strategy, n_codes, rng))
         return out

@@ -11,6 +11,10 @@ Heading (``heading_error``): the direction of travel is the root's horizontal di
 ``HEADING_SPAN`` (0.5 s, longer than a stride's sway), the body's facing line the perpendicular of the
 axis between the two hips (the top joints of the leg chains) at the span's middle; only spans where the
 root moves at ``MOVING_SPEED`` (0.5 m/s) or more count.
+
+Torso twist (``torso_twist``): the angle, seen from above, between the axis through the tops of the two
+arms (the shoulders) and the axis through the two hips, in every frame (real Bandai walks: 6.8° mean
+absolute, one clip per style, from 2.2° elderly to 13.7° active; waves about 1°).
 """
 
 from __future__ import annotations
@@ -19,7 +23,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from engine.motion.contact import foot_joints, hand_joints, leg_chains
+from engine.motion.contact import foot_joints, hand_joints, hip_pair, shoulder_pair
 from engine.motion.skeleton import Skeleton
 
 PLANTED_TOL = 0.03
@@ -128,11 +132,26 @@ def heading_error(clips: Sequence[np.ndarray], hips: tuple[int, int], root: int,
     return float(angles.mean()) if angles.size else 0.0
 
 
+def torso_twists(joints: np.ndarray, hips: tuple[int, int], shoulders: tuple[int, int]) -> np.ndarray:
+    """Per frame of one clip, the signed angle (degrees, −180..180) from the hips' axis to the shoulders'
+    axis about +y (left − right joint of each pair, horizontal parts)."""
+    pos = np.asarray(joints, dtype=np.float64)
+    h = pos[:, hips[0], ::2] - pos[:, hips[1], ::2]
+    s = pos[:, shoulders[0], ::2] - pos[:, shoulders[1], ::2]
+    return np.degrees(np.arctan2(h[:, 1] * s[:, 0] - h[:, 0] * s[:, 1], (h * s).sum(-1)))
+
+
+def torso_twist(clips: Sequence[np.ndarray], hips: tuple[int, int], shoulders: tuple[int, int]) -> float:
+    """Mean absolute ``torso_twists`` (degrees) over every frame of ``clips``."""
+    angles = np.concatenate([torso_twists(c, hips, shoulders) for c in clips] or [np.zeros(0)])
+    return float(np.abs(angles).mean()) if angles.size else 0.0
+
+
 def physics_metrics(clips: Sequence[np.ndarray], skeleton: Skeleton, fps: float) -> dict[str, float]:
     """Every plausibility figure of a set of clips (feet and hands found by name, the heading from two leg
-    chains; each left out without)."""
+    chains, the torso twist from them and two arms; each left out without)."""
     feet, hands, root = foot_joints(skeleton), hand_joints(skeleton), skeleton.root
-    legs = leg_chains(skeleton)
+    hips, shoulders = hip_pair(skeleton), shoulder_pair(skeleton)
     out = {"bone_length_cv": median_bone_length_cv(clips, skeleton.parents)}
     if feet:
         out["foot_skate_m_s"] = foot_skate(clips, feet, fps)
@@ -145,7 +164,8 @@ def physics_metrics(clips: Sequence[np.ndarray], skeleton: Skeleton, fps: float)
                 np.mean([oscillation_amplitude(c, limbs, root) for c in clips])
             )
     out["jerk_m_s3"] = float(np.nanmean([mean_jerk(c, fps) for c in clips]))
-    if len(legs) == 2:  # travel is the pelvis's (the hips' parent): a rig's root may stay at the origin
-        hips = (legs[0][0], legs[1][0])
+    if hips is not None:  # travel is the pelvis's (the hips' parent): a rig's root may stay at the origin
         out["heading_error_deg"] = heading_error(clips, hips, int(skeleton.parents[hips[0]]), fps)
+    if hips is not None and shoulders is not None:
+        out["torso_twist_deg"] = torso_twist(clips, hips, shoulders)
     return out

@@ -10,7 +10,8 @@ from torch import Tensor
 
 from engine.metrics.physics import HEADING_SPAN, MOVING_SPEED
 from engine.model.config import OdmoConfig
-from engine.motion.contact import HEIGHT_TOL
+from engine.motion.contact import HEIGHT_TOL, hip_pair, shoulder_pair
+from engine.motion.skeleton import Skeleton
 
 LOSS_TERMS = (
     "recon",
@@ -28,6 +29,7 @@ LOSS_TERMS = (
     "free_skate",
     "foot_height",
     "heading",
+    "twist",
 )
 
 
@@ -107,27 +109,22 @@ def spectrum_joints(config: OdmoConfig, parents: Sequence[int], root: int) -> li
     return sorted(joints)
 
 
-def hip_joints(config: OdmoConfig, parents: Sequence[int]) -> tuple[int, int] | None:
-    """The two hips (grandparents of the top-most foot joints of the config's two legs), or None."""
-    feet = set(config.foot_joints)
-    tops = [j for j in config.foot_joints if parents[j] not in feet]
-    hips = tuple(int(parents[parents[j]]) for j in tops if parents[j] >= 0 and parents[parents[j]] >= 0)
-    return (hips[0], hips[1]) if len(hips) == 2 and hips[0] != hips[1] else None
-
-
 @dataclass(frozen=True)
 class LossJoints:
     """Joints the loss terms read, found once from the skeleton: the root, the joints of the spectrum
-    term and the two hips of the heading term (None: a rig without two legs)."""
+    term, the two hips of the heading term and the two shoulders of the twist term (None: a rig without
+    two legs, or two arms)."""
 
     root: int
     spectrum_on: tuple[int, ...]
     hips: tuple[int, int] | None
+    shoulders: tuple[int, int] | None
 
     @classmethod
-    def of(cls, config: OdmoConfig, parents: Sequence[int], root: int) -> LossJoints:
-        """The joints of ``config``'s terms on a skeleton of ``parents``."""
-        return cls(root, tuple(spectrum_joints(config, parents, root)), hip_joints(config, parents))
+    def of(cls, config: OdmoConfig, skeleton: Skeleton) -> LossJoints:
+        """The joints of ``config``'s terms on ``skeleton``."""
+        spectrum_on = tuple(spectrum_joints(config, skeleton.parents, skeleton.root))
+        return cls(skeleton.root, spectrum_on, hip_pair(skeleton), shoulder_pair(skeleton))
 
 
 def spectrum_loss(
@@ -207,6 +204,25 @@ def heading_loss(pred: Tensor, target: Tensor, mask: Tensor, hips: tuple[int, in
     return ((pred_cos - real_cos.detach()).square() * valid).sum() / valid.sum().clamp(min=1.0)
 
 
+def _twists(joints: Tensor, hips: tuple[int, int], shoulders: tuple[int, int]) -> Tensor:
+    """(B, T, 2) unit (cos, sin) of the angle about +y from the hips' axis to the shoulders' axis."""
+    h = joints[:, :, hips[0], ::2] - joints[:, :, hips[1], ::2]
+    s = joints[:, :, shoulders[0], ::2] - joints[:, :, shoulders[1], ::2]
+    turn = torch.stack([(h * s).sum(-1), h[..., 1] * s[..., 0] - h[..., 0] * s[..., 1]], dim=-1)
+    return turn / turn.norm(dim=-1, keepdim=True).clamp(min=1e-6)
+
+
+def twist_loss(
+    pred: Tensor, target: Tensor, mask: Tensor, hips: tuple[int, int], shoulders: tuple[int, int]
+) -> Tensor:
+    """Squared distance between the unit (cos, sin) of the torso twist (``engine.metrics.physics``) of
+    ``pred`` and of ``target`` (B, T, J, 3) per real frame: 0 for the data's twist, 2 − 2 cos Δ for a
+    twist Δ off it."""
+    err = (_twists(pred, hips, shoulders) - _twists(target, hips, shoulders).detach()).square().sum(-1)
+    m = mask.to(err.dtype)
+    return (err * m).sum() / m.sum().clamp(min=1.0)
+
+
 def contrastive_loss(
     mu_a: Tensor, mu_b: Tensor, same: Tensor, alpha: float, pull_weight: float = 1.0
 ) -> Tensor:
@@ -242,6 +258,7 @@ def odmo_losses(
     free_joints: Tensor | None = None,
     spectrum_on: Sequence[int] | None = None,
     hips: tuple[int, int] | None = None,
+    shoulders: tuple[int, int] | None = None,
 ) -> dict[str, Tensor]:
     """Every loss term and the weighted ``total``.
 
@@ -258,7 +275,8 @@ def odmo_losses(
         foot joints (None: no contact head).
     free_joints : (2B, T, J, 3) a free-running decode of the same codes (None: no free-running terms).
     spectrum_on : the joints the spectrum term compares (``spectrum_joints``; None: all).
-    hips : the two hips of the heading term (``hip_joints``; None: no heading term).
+    hips : the two hips of the heading and twist terms (``hip_pair``; None: neither term).
+    shoulders : the two shoulders of the twist term (``shoulder_pair``; None: no twist term).
     """
     axis = torch.tensor([1.0, config.traj_y_weight, 1.0], device=joints.device)
     zero = joints.new_zeros(())
@@ -279,6 +297,7 @@ def odmo_losses(
         "free_skate": zero,
         "foot_height": zero,
         "heading": zero,
+        "twist": zero,
     }
     if free_joints is not None:
         terms["free"] = masked_mse(free_joints, joints, mask)
@@ -288,6 +307,8 @@ def odmo_losses(
         terms["spectrum"] = spectrum_loss(free_joints, joints, mask, root, spectrum_on)
         if hips is not None:
             terms["heading"] = heading_loss(free_joints, joints, mask, hips, config.fps)
+        if hips is not None and shoulders is not None:
+            terms["twist"] = twist_loss(free_joints, joints, mask, hips, shoulders)
     if contact_logits is not None and contacts is not None:
         feet = list(config.foot_joints)
         terms["contact"] = contact_loss(contact_logits, contacts, mask)
@@ -315,6 +336,7 @@ def odmo_losses(
         "free_skate": config.w_free_skate if free_feet_on else 0.0,
         "foot_height": config.w_foot_height if free_feet_on else 0.0,
         "heading": config.w_heading if free_joints is not None and hips is not None else 0.0,
+        "twist": config.w_twist if free_joints is not None and hips and shoulders else 0.0,
     }
     terms["total"] = sum(weights[k] * terms[k] for k in LOSS_TERMS if weights[k] > 0)
     return terms

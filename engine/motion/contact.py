@@ -51,6 +51,31 @@ def leg_chains(skeleton: Skeleton) -> list[tuple[int, int, int, list[int]]]:
     return chains
 
 
+def hip_pair(skeleton: Skeleton) -> tuple[int, int] | None:
+    """The two hips, the tops of the two ``leg_chains`` (None unless the rig has exactly two legs)."""
+    legs = leg_chains(skeleton)
+    return (legs[0][0], legs[1][0]) if len(legs) == 2 else None
+
+
+def shoulder_pair(skeleton: Skeleton) -> tuple[int, int] | None:
+    """The tops of the two arms (from each hand up to the joint below the first that branches, the
+    chest), the first on the side of ``hip_pair``'s first in the rest pose; None without two hands and
+    two legs."""
+    hips, hands = hip_pair(skeleton), hand_joints(skeleton)
+    if hips is None or len(hands) != 2:
+        return None
+    tops = []
+    for j in hands:
+        while int(skeleton.parents[j]) >= 0 and len(skeleton.children(int(skeleton.parents[j]))) == 1:
+            j = int(skeleton.parents[j])
+        tops.append(j)
+    if tops[0] == tops[1] or int(skeleton.parents[tops[0]]) < 0:
+        return None
+    rest = skeleton.rest_positions()
+    same_side = np.dot(rest[tops[0]] - rest[tops[1]], rest[hips[0]] - rest[hips[1]]) >= 0
+    return (tops[0], tops[1]) if same_side else (tops[1], tops[0])
+
+
 def _descends(parents: np.ndarray, k: int, ancestor: int) -> bool:
     """Whether joint ``k`` lies below ``ancestor`` in the tree."""
     p = int(parents[k])

@@ -92,6 +92,13 @@ class Skeleton:
         lengths[self.root] = 0.0
         return lengths
 
+    def rest_positions(self) -> np.ndarray:
+        """(J, 3) joint positions of the rest pose (offsets summed down the tree)."""
+        pos = np.zeros((self.n_joints, 3))
+        for j, p in enumerate(self.parents):
+            pos[j] = self.offsets[j] + (pos[p] if p >= 0 else 0.0)
+        return pos
+
     def scaled(self, factor: float, units: str = "m") -> Skeleton:
         """The same skeleton with offsets multiplied by ``factor``."""
         sites = tuple((p, tuple(float(v) * factor for v in o)) for p, o in self.end_sites)

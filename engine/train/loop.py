@@ -103,7 +103,7 @@ def _forward(
     tf_noise = None if noise is None else noise.tf
     out = model.decode_full(z, data.actions, end, prev_truth=truth, tf_rate=tf_rate, tf_noise=tf_noise)
     free = None
-    free_terms = ("w_free", "w_speed", "w_spectrum", "w_free_skate", "w_foot_height", "w_heading")
+    free_terms = ("w_free", "w_speed", "w_spectrum", "w_free_skate", "w_foot_height", "w_heading", "w_twist")
     if any(getattr(config, name) > 0 for name in free_terms):
         free = out.joints if truth is None else model.decode_full(z, data.actions, end).joints
     return odmo_losses(
@@ -123,6 +123,7 @@ def _forward(
         free_joints=free,
         spectrum_on=roles.spectrum_on,
         hips=roles.hips,
+        shoulders=roles.shoulders,
     )
 
 
@@ -198,7 +199,7 @@ class OdmoSteps:
                 f"batch_size {self.config.batch_size} does not split into equal shares of pairs over "
                 f"{ranks.world} processes; use a multiple of {2 * ranks.world}"
             )
-        self.roles = LossJoints.of(self.config, prepared.skeleton.parents, prepared.skeleton.root)
+        self.roles = LossJoints.of(self.config, prepared.skeleton)
         self.loss = parallel(_StepLoss(model, self.roles), ranks)
 
     def step(self, epoch: int, rng: np.random.Generator, generator: torch.Generator) -> dict[str, float]:

@@ -62,17 +62,9 @@ def left_right_pairs(skeleton: Skeleton) -> list[tuple[int, int]]:
         return preferred
     if pairs:
         return list(pairs.values())
-    rest = _rest_positions(skeleton)
+    rest = skeleton.rest_positions()
     log.info("no left/right joint names in the skeleton; measuring facing from the rest pose")
     return [(int(np.argmax(rest[:, 0])), int(np.argmin(rest[:, 0])))]
-
-
-def _rest_positions(skeleton: Skeleton) -> np.ndarray:
-    """(J, 3) rest-pose global joint positions."""
-    pos = np.zeros((skeleton.n_joints, 3))
-    for j, p in enumerate(skeleton.parents):
-        pos[j] = skeleton.offsets[j] + (pos[p] if p >= 0 else 0.0)
-    return pos
 
 
 def _facing_yaw(frame0: np.ndarray, pairs: Sequence[tuple[int, int]]) -> np.ndarray:

@@ -4,10 +4,12 @@ from __future__ import annotations
 
 import json
 import math
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 import pytest
+from scipy.spatial.transform import Rotation
 
 import engine.cli
 from engine.errors import ConfigError
@@ -45,7 +47,8 @@ CONTROL_KEYS = {"end_error_m", "end_error_pct", "control_accuracy"}
 CONTROL_KEYS |= {"end_error_out_m", "end_error_out_pct", "control_accuracy_out"}
 PHYSICS_KEYS = {"bone_length_cv", "foot_skate_m_s", "floor_penetration", "floor_depth_m", "float_share"}
 PHYSICS_KEYS |= {"hand_speed_m_s", "hand_amplitude_m", "foot_speed_m_s", "foot_amplitude_m", "jerk_m_s3"}
-# heading_error_deg needs two leg chains (hip, knee, foot), which the procedural stick figure lacks
+# heading_error_deg and torso_twist_deg need two leg chains (hip, knee, foot), which the procedural
+# stick figure lacks
 
 
 @pytest.fixture(scope="module")
@@ -136,13 +139,21 @@ def test_reconstruction_metrics_of_a_perfect_reconstruction(
     prepared = prepare_clips(procedural_clips, names, 20.0, 40)
     batch = crop_windows(prepared, np.arange(len(procedural_clips)), np.random.default_rng(0))
     joints = np.asarray(batch.joints, np.float32)
-    out = reconstruction_metrics(joints, batch, classifier, names)
+    skel = prepared.skeleton
+    out = reconstruction_metrics(joints, batch, classifier, names, skel)
     pred = classifier.classify(joints, batch.mask)[1]
     truth = [classifier.action_names.index(names[a]) for a in batch.actions]
     assert out["reconstruction_error_m"] == 0.0
     assert out["reconstruction_accuracy"] == pytest.approx(np.mean(pred == np.array(truth)))
-    shifted = reconstruction_metrics(joints + np.float32([0.0, 0.0, 0.03]), batch, None, names)
+    shifted = reconstruction_metrics(joints + np.float32([0.0, 0.0, 0.03]), batch, None, names, skel)
     assert shifted == {"reconstruction_error_m": pytest.approx(0.03)}
+    # turned about the vertical, each reconstruction is read in its own frame, as samples are: labelled
+    # with the classifier's own reading, it is read right whichever way it faces
+    as_read = replace(batch, actions=np.array([names.index(classifier.action_names[p]) for p in pred]))
+    turned = Rotation.from_euler("y", 180, degrees=True).apply(joints.reshape(-1, 3)).reshape(joints.shape)
+    again = reconstruction_metrics(turned.astype(np.float32), as_read, classifier, names, skel)
+    assert again["reconstruction_accuracy"] == 1.0
+    assert again["reconstruction_error_m"] > 0.05
 
 
 def test_mismatched_actions_or_skeleton_fail(tiny_model_dir: Path, procedural_clips: list[Motion]) -> None:

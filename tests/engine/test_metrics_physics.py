@@ -7,7 +7,14 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from engine.metrics import physics
-from engine.motion.contact import contact_labels, foot_joints, hand_joints, leg_chains
+from engine.motion.contact import (
+    contact_labels,
+    foot_joints,
+    hand_joints,
+    hip_pair,
+    leg_chains,
+    shoulder_pair,
+)
 from engine.motion.formats import read_motion
 from engine.motion.skeleton import Skeleton
 
@@ -183,3 +190,79 @@ def test_real_walks_face_where_they_go_and_a_turned_body_does_not(bandai_dir) ->
         turned[-1] += c.joints[:, root : root + 1]
     crab = physics.heading_error(turned, (hip_a, hip_b), root, clips[0].fps)
     assert crab > real + 15.0  # measured 28.0 against 8.4
+
+
+def _torso(twist_deg: float, t: int = 10) -> np.ndarray:
+    """(t, 5, 3): a pelvis (0), hips (1, 2) on the z axis and shoulders (3, 4) above them, the shoulders'
+    axis turned ``twist_deg`` about +y from the hips'."""
+    clip = np.zeros((t, 5, 3))
+    clip[:, :, 1] = [0.9, 0.9, 0.9, 1.4, 1.4]
+    clip[:, 1, 2], clip[:, 2, 2] = 0.1, -0.1
+    turn = Rotation.from_euler("y", twist_deg, degrees=True)
+    clip[:, 3, ::2] = turn.apply([0.0, 0.0, 0.2])[::2]
+    clip[:, 4] = clip[:, 3] * [-1, 1, -1]
+    return clip
+
+
+def test_torso_twist_is_the_angle_between_the_shoulders_and_the_hips() -> None:
+    assert np.allclose(physics.torso_twists(_torso(0.0), (1, 2), (3, 4)), 0.0)
+    assert np.allclose(physics.torso_twists(_torso(30.0), (1, 2), (3, 4)), 30.0)  # about +y
+    assert np.allclose(physics.torso_twists(_torso(-30.0), (1, 2), (3, 4)), -30.0)
+    assert np.allclose(physics.torso_twists(_torso(170.0), (1, 2), (3, 4)), 170.0)
+    # the mean absolute angle over every frame of every clip
+    assert physics.torso_twist([_torso(20.0), _torso(-40.0, t=30)], (1, 2), (3, 4)) == pytest.approx(35.0)
+    assert physics.torso_twist([], (1, 2), (3, 4)) == 0.0
+
+
+def test_shoulders_are_the_tops_of_the_arms_on_the_hips_sides() -> None:
+    # arms listed right first, fingers under the right hand; left is +x in the rest pose
+    names = ("Hips", "Spine", "Chest", "Neck", "RightArm", "RightHand", "RightHandIndex", "LeftArm")
+    names += ("LeftHand", "LeftUpLeg", "LeftLeg", "LeftFoot", "RightUpLeg", "RightLeg", "RightFoot")
+    parents = np.array([-1, 0, 1, 2, 2, 4, 5, 2, 7, 0, 9, 10, 0, 12, 13])
+    offsets = np.zeros((15, 3))
+    offsets[[1, 2, 3]] = [0, 0.2, 0]
+    offsets[[4, 7]] = [[-0.2, 0, 0], [0.2, 0, 0]]
+    offsets[[5, 6, 8]] = [[-0.5, 0, 0], [-0.1, 0, 0], [0.5, 0, 0]]
+    offsets[[9, 12]] = [[0.1, 0, 0], [-0.1, 0, 0]]
+    offsets[[10, 11, 13, 14]] = [0, -0.45, 0]
+    skel = Skeleton(names, parents, offsets)
+    assert hip_pair(skel) == (9, 12)
+    assert shoulder_pair(skel) == (7, 4)  # the left arm's top first, as the left hip
+    one_arm = Skeleton(names[:7] + names[9:], np.array([-1, 0, 1, 2, 2, 4, 5, 0, 7, 8, 0, 10, 11]),
+                       np.delete(offsets, [7, 8], axis=0))  # fmt: skip
+    assert shoulder_pair(one_arm) is None
+    row = physics.physics_metrics([np.repeat(skel.rest_positions()[None], 10, axis=0)], skel, FPS)
+    assert row["torso_twist_deg"] == pytest.approx(0.0)
+
+
+def test_real_walks_keep_the_shoulders_over_the_hips_and_a_twisted_chest_does_not(bandai_dir) -> None:
+    clips = [read_motion(p) for p in sorted((bandai_dir / "data").glob("dataset-2_walk_*_001.bvh"))]
+    skel = clips[0].skeleton
+    hips, shoulders = hip_pair(skel), shoulder_pair(skel)
+    assert [skel.names[j] for j in (*hips, *shoulders)] == [
+        "UpperLeg_L",
+        "UpperLeg_R",
+        "Shoulder_L",
+        "Shoulder_R",
+    ]
+    real = physics.torso_twist([c.joints for c in clips], hips, shoulders)
+    assert len(clips) == 7 and real < 12.0  # one walk per style: 6.8° (2.2° to 13.7°)
+    chest = int(skel.parents[shoulders[0]])
+    above = [j for j in range(skel.n_joints) if j != chest and _below(skel.parents, j, chest)]
+    twisted = []
+    for c in clips:  # everything above the chest turned 30° about the chest's vertical
+        pos = c.joints.copy()
+        local = pos[:, above] - pos[:, chest : chest + 1]
+        turn = Rotation.from_euler("y", 30, degrees=True)
+        pos[:, above] = turn.apply(local.reshape(-1, 3)).reshape(local.shape) + pos[:, chest : chest + 1]
+        twisted.append(pos)
+    assert physics.torso_twist(twisted, hips, shoulders) > real + 15.0  # measured 29.1
+
+
+def _below(parents: np.ndarray, j: int, ancestor: int) -> bool:
+    """Whether joint ``j`` lies in the subtree of ``ancestor``."""
+    while j >= 0:
+        if j == ancestor:
+            return True
+        j = int(parents[j])
+    return False

@@ -21,7 +21,6 @@ from engine.model.losses import (
     contrastive_loss,
     foot_height_loss,
     heading_loss,
-    hip_joints,
     masked_mse,
     mean_speeds,
     odmo_losses,
@@ -31,9 +30,11 @@ from engine.model.losses import (
     spectrum_joints,
     spectrum_loss,
     speed_loss,
+    twist_loss,
 )
 from engine.model.odmo import OdmoModel
 from engine.model.precision import bfloat16_autocast
+from engine.motion.skeleton import Skeleton
 
 pytestmark = pytest.mark.usefixtures("torch_single_thread")
 
@@ -539,14 +540,57 @@ def test_the_heading_term_enters_the_total_with_its_weight_and_needs_hips() -> N
     assert float(odmo_losses(cfg, **kw)["heading"]) == 0.0  # no hips: no heading term
 
 
-def test_loss_joints_find_the_hips_above_the_feet() -> None:
-    # root 0; spine 1 -> hand 2; leg 3 -> knee 4 -> foot 5 -> toe 6; leg 7 -> knee 8 -> foot 9
-    parents = [-1, 0, 1, 0, 3, 4, 5, 0, 7, 8]
-    cfg = OdmoConfig(n_actions=3, n_joints=10, foot_joints=(5, 6, 9), foot_heights=(0.1, 0.05, 0.1))
-    assert hip_joints(cfg, parents) == (3, 7)
-    assert LossJoints.of(cfg, parents, 0) == LossJoints(0, tuple(range(10)), (3, 7))
-    one_leg = OdmoConfig(n_actions=3, n_joints=10, foot_joints=(5, 6), foot_heights=(0.1, 0.05))
-    assert hip_joints(one_leg, parents) is None
+def test_loss_joints_find_the_hips_above_the_feet_and_the_shoulders() -> None:
+    # root 0; spine 1 -> arm 2 -> hand 3, arm 4 -> hand 5; legs 6 -> 7 -> foot 8 -> toe 9, 10 -> 11 -> 12
+    names = ("Hips", "Spine", "Arm_L", "Hand_L", "Arm_R", "Hand_R", "UpperLeg_L", "Knee_L", "Foot_L")
+    names += ("Toes_L", "UpperLeg_R", "Knee_R", "Foot_R")
+    parents = [-1, 0, 1, 2, 1, 4, 0, 6, 7, 8, 0, 10, 11]
+    offsets = [[0, 0.9, 0], [0, 0.4, 0], [0.2, 0, 0], [0.5, 0, 0], [-0.2, 0, 0], [-0.5, 0, 0], [0.1, 0, 0]]
+    offsets += [[0, -0.4, 0]] * 3 + [[-0.1, 0, 0]] + [[0, -0.4, 0]] * 2
+    skel = Skeleton(names, parents, offsets)
+    cfg = OdmoConfig(n_actions=3, n_joints=13, foot_joints=(8, 9, 12), foot_heights=(0.1, 0.05, 0.1))
+    assert LossJoints.of(cfg, skel) == LossJoints(0, tuple(range(13)), (6, 10), (2, 4))
+    one_leg = Skeleton(names[:10], parents[:10], offsets[:10])
+    assert LossJoints.of(cfg, one_leg) == LossJoints(0, tuple(range(10)), None, None)
+
+
+def _twisted(deg: float, t: int = 6) -> torch.Tensor:
+    """(1, t, 5, 3): a pelvis, hips (1, 2) on the z axis and shoulders (3, 4) turned ``deg`` about +y."""
+    clip = torch.zeros(1, t, 5, 3)
+    clip[..., 1] = torch.tensor([0.9, 0.9, 0.9, 1.4, 1.4])
+    clip[..., 1, 2], clip[..., 2, 2] = 0.1, -0.1
+    rad = math.radians(deg)
+    clip[..., 3, 0], clip[..., 3, 2] = 0.2 * math.sin(rad), 0.2 * math.cos(rad)
+    clip[..., 4, 0], clip[..., 4, 2] = -0.2 * math.sin(rad), -0.2 * math.cos(rad)
+    return clip
+
+
+def test_twist_loss_is_the_chord_between_the_twists() -> None:
+    mask = torch.ones(1, 6, dtype=torch.bool)
+    assert float(twist_loss(_twisted(12.0), _twisted(12.0), mask, (1, 2), (3, 4))) < 1e-12
+    expected = torch.tensor(2 - 2 * math.cos(math.radians(30.0)))
+    torch.testing.assert_close(twist_loss(_twisted(40.0), _twisted(10.0), mask, (1, 2), (3, 4)), expected)
+    torch.testing.assert_close(twist_loss(_twisted(-20.0), _twisted(10.0), mask, (1, 2), (3, 4)), expected)
+    late = _twisted(40.0)
+    late[:, 3:] = _twisted(10.0)[:, 3:]
+    half = mask.clone()
+    half[:, 3:] = False  # padded frames cost nothing: the twisted half alone
+    torch.testing.assert_close(twist_loss(late, _twisted(10.0), half, (1, 2), (3, 4)), expected)
+    pred = _twisted(40.0).requires_grad_()
+    twist_loss(pred, _twisted(10.0), mask, (1, 2), (3, 4)).backward()
+    assert pred.grad is not None and float(pred.grad[..., 3:, :].abs().sum()) > 0
+
+
+def test_the_twist_term_enters_the_total_with_its_weight_and_needs_shoulders() -> None:
+    cfg = OdmoConfig(n_actions=2, n_joints=5, w_twist=2.0, w_contrastive=0.0, w_prior=0.0, w_free=0.0)
+    real, mask = _twisted(0.0).repeat(2, 1, 1, 1), torch.ones(2, 6, dtype=torch.bool)
+    kw = {"mu": torch.zeros(2, 6), "logvar": torch.zeros(2, 6), "same": torch.tensor([True]), "root": 0}
+    kw |= {"joints": real, "trajectory": real[:, :, 0], "mask": mask, "pred_joints": real}
+    kw |= {"pred_trajectory": real[:, :, 0], "free_joints": _twisted(60.0).repeat(2, 1, 1, 1)}
+    terms = odmo_losses(cfg, hips=(1, 2), shoulders=(3, 4), **kw)
+    torch.testing.assert_close(terms["twist"], torch.tensor(1.0))  # 2 − 2 cos 60°
+    torch.testing.assert_close(terms["total"], terms["velocity"] * cfg.w_velocity + 2.0 * terms["twist"])
+    assert float(odmo_losses(cfg, hips=(1, 2), **kw)["twist"]) == 0.0  # no shoulders: no twist term
 
 
 def test_contrastive_known_values() -> None:
