@@ -3,8 +3,9 @@
     python bench/train_default.py --data "$(../shared/data/unpack)" [--resume]
 
 The defaults are the bundled model's settings (60 epochs, teacher forcing decaying from 1 towards 0.3
-over 100 epochs, no same-action pull, the loss weights of ``BUNDLED_WEIGHTS``, seed 0, one torch thread:
-training results differ between thread counts). The evaluation classifier in --work/classifier is
+over 100 epochs, no same-action pull, the loss weights of ``BUNDLED_WEIGHTS``, log speed errors, the
+free-running skate term on the decode's own contacts, seed 0, one torch thread: training results differ
+between thread counts). The evaluation classifier in --work/classifier is
 reused when present.
 
 Holds out 15 % of the clips (stratified by action and style, seed 2022; see bench/heldout.py), trains
@@ -45,7 +46,8 @@ from engine.train.loop import train
 
 #: The bundled model's loss weights where they differ from OdmoConfig's defaults (README, "Where the model
 #: differs from the paper").
-BUNDLED_WEIGHTS = ("w_skate=0.01", "w_free=1", "w_speed=0.1", "w_velocity=0.1")
+BUNDLED_WEIGHTS = ("w_skate=0.01", "w_free=1", "w_speed=0.1", "w_velocity=0.1", "w_spectrum=0.5")
+BUNDLED_WEIGHTS += ("w_free_skate=0.05", "w_foot_height=10", "w_heading=1", "w_twist=1")
 DEFAULT_OUT = Path(__file__).resolve().parents[1] / "resources" / "models" / "bandai2-odmo"
 
 
@@ -65,7 +67,7 @@ def parse_args() -> argparse.Namespace:
     p.add_argument(
         "--speed-error",
         choices=SPEED_ERRORS,
-        default="absolute",
+        default="log",
         help="how the w_speed term compares joint speeds (log: relative errors)",
     )
     p.add_argument(
@@ -74,7 +76,7 @@ def parse_args() -> argparse.Namespace:
     p.add_argument(
         "--free-skate-contacts",
         choices=FREE_SKATE_CONTACTS,
-        default="data",
+        default="own",
         help="where the w_free_skate term holds the feet: where the data's are planted or the decode's own",
     )
     p.add_argument(
