@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import pytest
 import torch
@@ -528,12 +529,18 @@ def test_heading_loss_is_the_squared_cosine_error_of_a_turned_body() -> None:
     assert crab.grad is not None and float(crab.grad.abs().sum()) > 0
 
 
+def _pair_kwargs(real: torch.Tensor, free: torch.Tensor) -> dict[str, Any]:
+    """``odmo_losses`` arguments for a window (1, T, J, 3) and its partner, both ``real``, decoded exactly
+    when teacher-forced and as ``free`` free-running, their codes at 0."""
+    real, free, t = real.repeat(2, 1, 1, 1), free.repeat(2, 1, 1, 1), real.shape[1]
+    kw = {"mu": torch.zeros(2, t), "logvar": torch.zeros(2, t), "same": torch.tensor([True]), "root": 0}
+    kw |= {"joints": real, "trajectory": real[:, :, 0], "mask": torch.ones(2, t, dtype=torch.bool)}
+    return kw | {"pred_joints": real, "pred_trajectory": real[:, :, 0], "free_joints": free}
+
+
 def test_the_heading_term_enters_the_total_with_its_weight_and_needs_hips() -> None:
     cfg = OdmoConfig(n_actions=2, n_joints=3, w_heading=3.0, w_contrastive=0.0, w_prior=0.0, w_free=0.0)
-    real, mask = _crab(0.0).repeat(2, 1, 1, 1), torch.ones(2, 20, dtype=torch.bool)
-    kw = {"mu": torch.zeros(2, 20), "logvar": torch.zeros(2, 20), "same": torch.tensor([True]), "root": 0}
-    kw |= {"joints": real, "trajectory": real[:, :, 0], "mask": mask, "pred_joints": real}
-    kw |= {"pred_trajectory": real[:, :, 0], "free_joints": _crab(30.0).repeat(2, 1, 1, 1)}
+    kw = _pair_kwargs(_crab(0.0), _crab(30.0))
     terms = odmo_losses(cfg, hips=(1, 2), **kw)
     torch.testing.assert_close(terms["heading"], torch.tensor(0.25))
     torch.testing.assert_close(terms["total"], terms["velocity"] * cfg.w_velocity + 3.0 * terms["heading"])
@@ -583,10 +590,7 @@ def test_twist_loss_is_the_chord_between_the_twists() -> None:
 
 def test_the_twist_term_enters_the_total_with_its_weight_and_needs_shoulders() -> None:
     cfg = OdmoConfig(n_actions=2, n_joints=5, w_twist=2.0, w_contrastive=0.0, w_prior=0.0, w_free=0.0)
-    real, mask = _twisted(0.0).repeat(2, 1, 1, 1), torch.ones(2, 6, dtype=torch.bool)
-    kw = {"mu": torch.zeros(2, 6), "logvar": torch.zeros(2, 6), "same": torch.tensor([True]), "root": 0}
-    kw |= {"joints": real, "trajectory": real[:, :, 0], "mask": mask, "pred_joints": real}
-    kw |= {"pred_trajectory": real[:, :, 0], "free_joints": _twisted(60.0).repeat(2, 1, 1, 1)}
+    kw = _pair_kwargs(_twisted(0.0), _twisted(60.0))
     terms = odmo_losses(cfg, hips=(1, 2), shoulders=(3, 4), **kw)
     torch.testing.assert_close(terms["twist"], torch.tensor(1.0))  # 2 − 2 cos 60°
     torch.testing.assert_close(terms["total"], terms["velocity"] * cfg.w_velocity + 2.0 * terms["twist"])
