@@ -666,7 +666,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         "Physical figures": "`engine.metrics.physics` at display height (floor y = 0): worst-bone length "
         "std/mean per clip (median), horizontal speed of foot joints planted within 3 cm of the clip's "
         "lowest foot height, share of frames with the lowest foot joint > 2 cm under the floor, share of "
-        "clips whose feet stay > 10 cm up for 0.5 s, mean hand speed, mean jerk of every joint",
+        "clips whose feet stay > 10 cm up for 0.5 s, mean hand speed, mean jerk of every joint, the angle "
+        "between the hips' facing line and the pelvis's travel over 0.5 s where it moves at 0.5 m/s or "
+        "more (heading), the mean absolute angle between the shoulders' axis and the hips' (torso twist)",
         "Rows": "this run made "
         + ", ".join((ROWS | labels)[e["row"]] for e in entries)
         + (
