@@ -299,6 +299,7 @@ def odmo_losses(
         "heading": zero,
         "twist": zero,
     }
+    twist_on = free_joints is not None and hips is not None and shoulders is not None
     if free_joints is not None:
         terms["free"] = masked_mse(free_joints, joints, mask)
         terms["speed"] = speed_loss(
@@ -307,7 +308,7 @@ def odmo_losses(
         terms["spectrum"] = spectrum_loss(free_joints, joints, mask, root, spectrum_on)
         if hips is not None:
             terms["heading"] = heading_loss(free_joints, joints, mask, hips, config.fps)
-        if hips is not None and shoulders is not None:
+        if twist_on:
             terms["twist"] = twist_loss(free_joints, joints, mask, hips, shoulders)
     if contact_logits is not None and contacts is not None:
         feet = list(config.foot_joints)
@@ -336,7 +337,7 @@ def odmo_losses(
         "free_skate": config.w_free_skate if free_feet_on else 0.0,
         "foot_height": config.w_foot_height if free_feet_on else 0.0,
         "heading": config.w_heading if free_joints is not None and hips is not None else 0.0,
-        "twist": config.w_twist if free_joints is not None and hips and shoulders else 0.0,
+        "twist": config.w_twist if twist_on else 0.0,
     }
     terms["total"] = sum(weights[k] * terms[k] for k in LOSS_TERMS if weights[k] > 0)
     return terms
