@@ -32,6 +32,7 @@ log = logging.getLogger(__name__)
 
 TWIST_POLICIES = ("minimal",)
 PLANT_RAMP = 3  # frames over which a planted foot's shift fades in and out
+PLANT_REACH = 0.15  # metres a planted foot may be moved along the floor from where it was decoded
 _EPS = 1e-9
 
 
@@ -157,6 +158,7 @@ def plant_feet(
     feet: Sequence[int],
     heights: Sequence[float],
     ramp: int = PLANT_RAMP,
+    reach: float = PLANT_REACH,
     ground: bool = True,
 ) -> np.ndarray:
     """Joints (B, T, J, 3), floor y = 0, with planted feet pinned and no foot under its resting height.
@@ -164,8 +166,11 @@ def plant_feet(
     With ``ground`` a clip whose feet never come down to the floor is first lowered onto it
     (``lower_to_floor``). Per leg (``leg_chains``): while its lowest-resting foot joint (the toe) is
     planted (``contact`` (B, T, F) over ``feet``, resting ``heights`` (F,)), that joint keeps the mean
-    floor position of the contact and sits at its resting height; the shift fades out over ``ramp``
-    frames either side. Any frame whose foot joints dip under their resting heights is lifted to them.
+    floor position of the contact and sits at its resting height, but is never moved more than ``reach``
+    metres along the floor from where it was decoded (a foot decoded sliding further is dragged rather
+    than torn from a leg that cannot reach it); the shift fades out over ``ramp`` frames either side, and
+    passes linearly from one contact's shift to the next across a shorter gap, so pinning never makes a
+    foot jump. Any frame whose foot joints dip under their resting heights is lifted to them.
     The foot moves rigidly and the knee is re-solved by two-bone IK (hip fixed, bone lengths kept; a
     target out of reach is approached along the hip-to-target line), so the pose stays one a BVH holds
     exactly.
@@ -181,7 +186,7 @@ def plant_feet(
             continue
         rest = heights[cols]
         low = cols[int(np.argmin(rest))]
-        delta = _pin_shift(out[:, :, feet[low]], np.asarray(contact, bool)[..., low], rest.min(), ramp)
+        delta = _pin_shift(out[:, :, feet[low]], np.asarray(contact, bool)[..., low], rest.min(), ramp, reach)
         moved = out[:, :, [feet[c] for c in cols]] + delta[:, :, None]
         delta[..., 1] += np.maximum(0.0, (rest - moved[..., 1]).max(axis=-1))
         moving = np.abs(delta).max(axis=-1) > 1e-9  # (B, T): frames left alone stay bit-identical
@@ -196,9 +201,11 @@ def plant_feet(
     return out.astype(np.asarray(joints).dtype)
 
 
-def _pin_shift(pos: np.ndarray, planted: np.ndarray, rest: float, ramp: int) -> np.ndarray:
-    """(B, T, 3) shift that holds joint positions ``pos`` (B, T, 3) at the mean floor point of each
-    contact (``planted`` (B, T)) and at height ``rest``, faded out linearly over ``ramp`` frames."""
+def _pin_shift(pos: np.ndarray, planted: np.ndarray, rest: float, ramp: int, reach: float) -> np.ndarray:
+    """(B, T, 3) shift that holds joint positions ``pos`` (B, T, 3) at height ``rest`` and at the mean
+    floor point of each contact (``planted`` (B, T)), or ``reach`` metres short of it where the joint
+    strays further. Between contacts the shift fades out linearly over ``ramp`` frames, and across a gap
+    too short for both fades it passes linearly from one contact's shift to the next one's."""
     b, t = planted.shape
     planted = np.asarray(planted, bool)
     starts = planted & ~np.concatenate([np.zeros((b, 1), bool), planted[:, :-1]], axis=1)
@@ -209,17 +216,19 @@ def _pin_shift(pos: np.ndarray, planted: np.ndarray, rest: float, ramp: int) -> 
     for axis in (0, 2):
         mean = np.bincount(ids, weights=pos[..., axis][planted], minlength=count.size) / np.maximum(count, 1)
         delta[..., axis][planted] = mean[ids] - pos[..., axis][planted]
+    far = np.hypot(delta[..., 0], delta[..., 2])
+    delta[..., [0, 2]] *= (reach / np.maximum(far, reach))[..., None]
     delta[..., 1][planted] = rest - pos[..., 1][planted]
-    if ramp <= 0 or not planted.any():
-        return delta
     frames = np.arange(t)[None, :]
-    last = np.maximum.accumulate(np.where(planted, frames, -(10**9)), axis=1)
-    nxt = np.minimum.accumulate(np.where(planted, frames, 10**9)[:, ::-1], axis=1)[:, ::-1]
-    near = np.where(frames - last <= nxt - frames, last, nxt)
-    gap = np.abs(frames - near)
-    weight = np.clip(1.0 - gap / (ramp + 1.0), 0.0, 1.0)
-    source = np.take_along_axis(delta, np.clip(near, 0, t - 1)[..., None], axis=1)
-    return np.where(planted[..., None], delta, weight[..., None] * source)
+    last = np.maximum.accumulate(np.where(planted, frames, -1), axis=1)
+    nxt = np.minimum.accumulate(np.where(planted, frames, t)[:, ::-1], axis=1)[:, ::-1]
+    both = (last >= 0) & (nxt < t)
+    span = np.where(both, np.clip(nxt - last, 1, ramp + 1), ramp + 1)
+    fade_out = np.where(last >= 0, np.clip(1.0 - (frames - last) / span, 0.0, 1.0), 0.0)
+    fade_in = np.where(nxt < t, np.clip(1.0 - (nxt - frames) / span, 0.0, 1.0), 0.0)
+    before = np.take_along_axis(delta, np.clip(last, 0, t - 1)[..., None], axis=1)
+    after = np.take_along_axis(delta, np.clip(nxt, 0, t - 1)[..., None], axis=1)
+    return np.where(planted[..., None], delta, fade_out[..., None] * before + fade_in[..., None] * after)
 
 
 def _two_bone(

@@ -3,9 +3,10 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from engine.metrics.physics import floats
-from engine.motion.ik import PLANT_RAMP, joints_to_rotations, lower_to_floor, plant_feet
+from engine.motion.ik import PLANT_RAMP, PLANT_REACH, joints_to_rotations, lower_to_floor, plant_feet
 from engine.motion.motion import Motion
 from engine.motion.rotations import forward_kinematics
 from tests.engine.test_metrics_physics import FPS, OFFSETS, PARENTS, skeleton, standing
@@ -19,11 +20,11 @@ def _lengths(joints: np.ndarray) -> np.ndarray:
     return np.linalg.norm(joints[..., kids, :] - joints[..., PARENTS[kids], :], axis=-1)
 
 
-def _sliding(t: int = 40) -> np.ndarray:
-    """A body sliding 0.3 m/s along z with a bent knee (hip 0.85 m above the ankle) and the toe
+def _sliding(t: int = 40, speed: float = 0.3) -> np.ndarray:
+    """A body sliding ``speed`` m/s along z with a bent knee (hip 0.85 m above the ankle) and the toe
     hovering 1 cm above the floor; every bone at its rest length."""
     clip = np.zeros((t, 7, 3))
-    slide = np.arange(t) * 0.3 / FPS - 0.2
+    slide = np.arange(t) * speed / FPS - 0.2
     ankle = np.stack([np.full(t, 0.1), np.full(t, 0.06), slide], axis=1)
     hip = ankle + np.array([0.0, 0.85, 0.0])
     clip[:, 3], clip[:, 5] = hip, ankle
@@ -50,6 +51,38 @@ def test_a_planted_sliding_foot_is_pinned_and_the_leg_keeps_its_bones() -> None:
     np.testing.assert_allclose(out[far], clip[far], atol=1e-9)  # away from the contact nothing moves
     # the foot moves rigidly: the ankle-to-toe bone keeps its direction
     np.testing.assert_allclose(out[:, 6] - out[:, 5], clip[:, 6] - clip[:, 5], atol=1e-9)
+
+
+def test_a_foot_that_slides_far_is_held_no_further_than_the_reach_from_where_it_was_decoded() -> None:
+    clip = _sliding(speed=1.5)  # 1.4 m of sliding over one contact: pinning it would tear the leg off
+    contact = np.zeros((1, 40, 2), bool)
+    contact[0, 10:30, 1] = True
+    out = plant_feet(clip[None], contact, skeleton(), FEET, HEIGHTS, ground=False)[0]
+    raw, toe = clip[10:30, 6, [0, 2]], out[10:30, 6, [0, 2]]
+    to_mean = raw.mean(0) - raw
+    far = np.linalg.norm(to_mean, axis=1)
+    expected = raw + to_mean * (np.minimum(far, PLANT_REACH) / far)[:, None]
+    np.testing.assert_allclose(toe, expected, atol=1e-9)
+    held = far <= PLANT_REACH
+    assert 0 < held.sum() < 20  # pinned at the contact's mean while within reach, dragged beyond it
+    np.testing.assert_allclose(toe[held], np.broadcast_to(raw.mean(0), (held.sum(), 2)), atol=1e-9)
+    np.testing.assert_allclose(_lengths(out)[:, 2:], _lengths(clip)[:, 2:], atol=1e-9)
+
+
+def test_across_a_short_gap_the_shift_passes_linearly_from_one_contact_to_the_next() -> None:
+    clip = _sliding()
+    contact = np.zeros((1, 40, 2), bool)
+    contact[0, 5:18, 1] = contact[0, 20:33, 1] = True  # two contacts, two free frames between them
+    out = plant_feet(clip[None], contact, skeleton(), FEET, HEIGHTS, ground=False)[0]
+    raw = clip[:, 6, [0, 2]]
+    before, after = raw[5:18].mean(0) - raw[17], raw[20:33].mean(0) - raw[20]
+    for frame, share in ((18, 1 / 3), (19, 2 / 3)):
+        expected = raw[frame] + before + share * (after - before)
+        np.testing.assert_allclose(out[frame, 6, [0, 2]], expected, atol=1e-9)
+    steps = np.linalg.norm(np.diff(out[:, 6], axis=0), axis=1)
+    slide = 0.3 / FPS
+    # 0.18 m of shift change spread over the three steps of the gap, never in one frame
+    assert steps.max() == pytest.approx(np.linalg.norm(after - before) / 3 + slide)
 
 
 def test_the_cleaned_leg_is_one_a_bvh_holds() -> None:
