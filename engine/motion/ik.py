@@ -32,7 +32,9 @@ log = logging.getLogger(__name__)
 
 TWIST_POLICIES = ("minimal",)
 PLANT_RAMP = 3  # frames over which a planted foot's shift fades in and out
-PLANT_REACH = 0.15  # metres a planted foot may be moved along the floor from where it was decoded
+PLANT_BRIDGE = 2  # frames: a shorter break between two contacts is the contact head flickering
+PLANT_REACH = 0.3  # metres a planted foot may be held along the floor from where it was decoded
+PLANT_SLACK = 0.04  # metres past the leg's length a pinned ankle may be placed (the IK lifts it that much)
 _EPS = 1e-9
 
 
@@ -165,20 +167,22 @@ def plant_feet(
 
     With ``ground`` a clip whose feet never come down to the floor is first lowered onto it
     (``lower_to_floor``). Per leg (``leg_chains``): while its lowest-resting foot joint (the toe) is
-    planted (``contact`` (B, T, F) over ``feet``, resting ``heights`` (F,)), that joint keeps the mean
-    floor position of the contact and sits at its resting height, but is never moved more than ``reach``
-    metres along the floor from where it was decoded (a foot decoded sliding further is dragged rather
-    than torn from a leg that cannot reach it); the shift fades out over ``ramp`` frames either side, and
-    passes linearly from one contact's shift to the next across a shorter gap, so pinning never makes a
-    foot jump. Any frame whose foot joints dip under their resting heights is lifted to them.
-    The foot moves rigidly and the knee is re-solved by two-bone IK (hip fixed, bone lengths kept; a
-    target out of reach is approached along the hip-to-target line), so the pose stays one a BVH holds
-    exactly.
+    planted (``contact`` (B, T, F) over ``feet``, resting ``heights`` (F,); breaks of up to
+    ``PLANT_BRIDGE`` frames filled), that joint keeps the mean floor position of the contact and sits at
+    its resting height. It is held no more than ``reach`` metres along the floor from where it was
+    decoded, nor further than the leg reaches from its hip (plus ``PLANT_SLACK``): a foot decoded
+    sliding further is dragged rather than torn from the leg or lifted off the floor. The shift fades out
+    over ``ramp`` frames either side, and passes linearly from one contact's shift to the next across a
+    shorter gap, so pinning never makes a foot jump. Any frame whose foot joints dip under their resting
+    heights is lifted to them. The foot moves rigidly and the knee is re-solved by two-bone IK (hip fixed,
+    bone lengths kept; a target out of reach is approached along the hip-to-target line), so the pose
+    stays one a BVH holds exactly.
     """
     out = np.array(joints, dtype=np.float64, copy=True)
     feet, heights = list(feet), np.asarray(heights, dtype=np.float64)
     if ground:
         out = lower_to_floor(out, feet, heights)
+    planted = np.asarray(contact, bool)
     for hip, knee, ankle, below in leg_chains(skeleton):
         leg = [ankle, *below]
         cols = [feet.index(j) for j in leg if j in feet]
@@ -186,9 +190,11 @@ def plant_feet(
             continue
         rest = heights[cols]
         low = cols[int(np.argmin(rest))]
-        delta = _pin_shift(out[:, :, feet[low]], np.asarray(contact, bool)[..., low], rest.min(), ramp, reach)
+        toe_planted = _bridged(planted[..., low], PLANT_BRIDGE)
+        delta = _pin_shift(out[:, :, feet[low]], toe_planted, rest.min(), ramp, reach)
         moved = out[:, :, [feet[c] for c in cols]] + delta[:, :, None]
         delta[..., 1] += np.maximum(0.0, (rest - moved[..., 1]).max(axis=-1))
+        delta = _within_leg(delta, out[:, :, hip], out[:, :, knee], out[:, :, ankle])
         moving = np.abs(delta).max(axis=-1) > 1e-9  # (B, T): frames left alone stay bit-identical
         if not moving.any():
             continue
@@ -201,13 +207,28 @@ def plant_feet(
     return out.astype(np.asarray(joints).dtype)
 
 
+def _spans(planted: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(B, T) index of the last planted frame at or before each frame (-1: none) and of the next one at
+    or after it (T: none)."""
+    t = planted.shape[1]
+    frames = np.arange(t)[None, :]
+    last = np.maximum.accumulate(np.where(planted, frames, -1), axis=1)
+    nxt = np.minimum.accumulate(np.where(planted, frames, t)[:, ::-1], axis=1)[:, ::-1]
+    return last, nxt
+
+
+def _bridged(planted: np.ndarray, gap: int) -> np.ndarray:
+    """``planted`` (B, T) with every break of at most ``gap`` frames between two contacts filled."""
+    last, nxt = _spans(planted)
+    return planted | ((last >= 0) & (nxt < planted.shape[1]) & (nxt - last - 1 <= gap))
+
+
 def _pin_shift(pos: np.ndarray, planted: np.ndarray, rest: float, ramp: int, reach: float) -> np.ndarray:
     """(B, T, 3) shift that holds joint positions ``pos`` (B, T, 3) at height ``rest`` and at the mean
     floor point of each contact (``planted`` (B, T)), or ``reach`` metres short of it where the joint
     strays further. Between contacts the shift fades out linearly over ``ramp`` frames, and across a gap
     too short for both fades it passes linearly from one contact's shift to the next one's."""
     b, t = planted.shape
-    planted = np.asarray(planted, bool)
     starts = planted & ~np.concatenate([np.zeros((b, 1), bool), planted[:, :-1]], axis=1)
     seg = np.cumsum(starts, axis=1) + (np.arange(b) * (t + 1))[:, None]
     ids = seg[planted]
@@ -219,16 +240,32 @@ def _pin_shift(pos: np.ndarray, planted: np.ndarray, rest: float, ramp: int, rea
     far = np.hypot(delta[..., 0], delta[..., 2])
     delta[..., [0, 2]] *= (reach / np.maximum(far, reach))[..., None]
     delta[..., 1][planted] = rest - pos[..., 1][planted]
+    last, nxt = _spans(planted)
     frames = np.arange(t)[None, :]
-    last = np.maximum.accumulate(np.where(planted, frames, -1), axis=1)
-    nxt = np.minimum.accumulate(np.where(planted, frames, t)[:, ::-1], axis=1)[:, ::-1]
-    both = (last >= 0) & (nxt < t)
-    span = np.where(both, np.clip(nxt - last, 1, ramp + 1), ramp + 1)
+    span = np.where((last >= 0) & (nxt < t), np.clip(nxt - last, 1, ramp + 1), ramp + 1)
     fade_out = np.where(last >= 0, np.clip(1.0 - (frames - last) / span, 0.0, 1.0), 0.0)
     fade_in = np.where(nxt < t, np.clip(1.0 - (nxt - frames) / span, 0.0, 1.0), 0.0)
     before = np.take_along_axis(delta, np.clip(last, 0, t - 1)[..., None], axis=1)
     after = np.take_along_axis(delta, np.clip(nxt, 0, t - 1)[..., None], axis=1)
     return np.where(planted[..., None], delta, fade_out[..., None] * before + fade_in[..., None] * after)
+
+
+def _within_leg(delta: np.ndarray, hip: np.ndarray, knee: np.ndarray, ankle: np.ndarray) -> np.ndarray:
+    """``delta`` (B, T, 3) with its floor part shortened where it would put the ankle further from the
+    hip than the leg's length plus ``PLANT_SLACK``."""
+    reach = np.linalg.norm(knee - hip, axis=-1) + np.linalg.norm(ankle - knee, axis=-1) + PLANT_SLACK
+    start = ankle - hip
+    start[..., 1] += delta[..., 1]
+    floor = delta * np.array([1.0, 0.0, 1.0])
+    # |start + s·floor|² ≤ reach²: the largest s in [0, 1] that satisfies it.
+    a = (floor**2).sum(-1)
+    b = (start * floor).sum(-1)
+    c = (start**2).sum(-1) - reach**2
+    root = (-b + np.sqrt(np.maximum(b**2 - a * c, 0.0))) / np.maximum(a, 1e-12)
+    share = np.where(a + 2 * b + c <= 0.0, 1.0, np.where(c > 0.0, 0.0, np.clip(root, 0.0, 1.0)))
+    out = delta.copy()
+    out[..., [0, 2]] *= share[..., None]
+    return out
 
 
 def _two_bone(

@@ -132,4 +132,4 @@ def test_the_foot_clean_up_never_makes_a_gait_jump_more_than_its_raw_decode(bund
 
     # Pinning a foot out of the leg's reach, or switching pins across a short gap, made 1 m jumps;
     # a pin within reach, faded in over the ramp, adds a few centimetres to a frame's step at most.
-    assert (largest_step(cleaned) - largest_step(raw)).max() < 0.06
+    assert (largest_step(cleaned) - largest_step(raw)).max() < 0.1

@@ -6,7 +6,14 @@ import numpy as np
 import pytest
 
 from engine.metrics.physics import floats
-from engine.motion.ik import PLANT_RAMP, PLANT_REACH, joints_to_rotations, lower_to_floor, plant_feet
+from engine.motion.ik import (
+    PLANT_RAMP,
+    PLANT_REACH,
+    PLANT_SLACK,
+    joints_to_rotations,
+    lower_to_floor,
+    plant_feet,
+)
 from engine.motion.motion import Motion
 from engine.motion.rotations import forward_kinematics
 from tests.engine.test_metrics_physics import FPS, OFFSETS, PARENTS, skeleton, standing
@@ -20,15 +27,15 @@ def _lengths(joints: np.ndarray) -> np.ndarray:
     return np.linalg.norm(joints[..., kids, :] - joints[..., PARENTS[kids], :], axis=-1)
 
 
-def _sliding(t: int = 40, speed: float = 0.3) -> np.ndarray:
-    """A body sliding ``speed`` m/s along z with a bent knee (hip 0.85 m above the ankle) and the toe
-    hovering 1 cm above the floor; every bone at its rest length."""
+def _sliding(t: int = 40, speed: float = 0.3, hip_height: float = 0.85) -> np.ndarray:
+    """A body sliding ``speed`` m/s along z with the hip ``hip_height`` above the ankle (0.9: a straight
+    leg; less: a bent knee) and the toe hovering 1 cm above the floor; every bone at its rest length."""
     clip = np.zeros((t, 7, 3))
     slide = np.arange(t) * speed / FPS - 0.2
     ankle = np.stack([np.full(t, 0.1), np.full(t, 0.06), slide], axis=1)
-    hip = ankle + np.array([0.0, 0.85, 0.0])
+    hip = ankle + np.array([0.0, hip_height, 0.0])
     clip[:, 3], clip[:, 5] = hip, ankle
-    clip[:, 4] = hip + np.array([0.0, -0.425, np.sqrt(0.45**2 - 0.425**2)])
+    clip[:, 4] = hip + np.array([0.0, -hip_height / 2, np.sqrt(max(0.45**2 - (hip_height / 2) ** 2, 0.0))])
     clip[:, 6] = ankle + OFFSETS[6]
     clip[:, 0] = hip - OFFSETS[3]
     clip[:, 1] = clip[:, 0] + OFFSETS[1]
@@ -54,7 +61,7 @@ def test_a_planted_sliding_foot_is_pinned_and_the_leg_keeps_its_bones() -> None:
 
 
 def test_a_foot_that_slides_far_is_held_no_further_than_the_reach_from_where_it_was_decoded() -> None:
-    clip = _sliding(speed=1.5)  # 1.4 m of sliding over one contact: pinning it would tear the leg off
+    clip = _sliding(speed=1.5, hip_height=0.8)  # 1.4 m of sliding over one contact
     contact = np.zeros((1, 40, 2), bool)
     contact[0, 10:30, 1] = True
     out = plant_feet(clip[None], contact, skeleton(), FEET, HEIGHTS, ground=False)[0]
@@ -72,17 +79,41 @@ def test_a_foot_that_slides_far_is_held_no_further_than_the_reach_from_where_it_
 def test_across_a_short_gap_the_shift_passes_linearly_from_one_contact_to_the_next() -> None:
     clip = _sliding()
     contact = np.zeros((1, 40, 2), bool)
-    contact[0, 5:18, 1] = contact[0, 20:33, 1] = True  # two contacts, two free frames between them
+    contact[0, 5:18, 1] = contact[0, 21:34, 1] = True  # two contacts, three free frames between them
     out = plant_feet(clip[None], contact, skeleton(), FEET, HEIGHTS, ground=False)[0]
     raw = clip[:, 6, [0, 2]]
-    before, after = raw[5:18].mean(0) - raw[17], raw[20:33].mean(0) - raw[20]
-    for frame, share in ((18, 1 / 3), (19, 2 / 3)):
+    before, after = raw[5:18].mean(0) - raw[17], raw[21:34].mean(0) - raw[21]
+    for frame, share in ((18, 1 / 4), (19, 2 / 4), (20, 3 / 4)):
         expected = raw[frame] + before + share * (after - before)
         np.testing.assert_allclose(out[frame, 6, [0, 2]], expected, atol=1e-9)
     steps = np.linalg.norm(np.diff(out[:, 6], axis=0), axis=1)
     slide = 0.3 / FPS
-    # 0.18 m of shift change spread over the three steps of the gap, never in one frame
-    assert steps.max() == pytest.approx(np.linalg.norm(after - before) / 3 + slide)
+    # 0.2 m of shift change spread over the four steps of the gap, never in one frame
+    assert steps.max() == pytest.approx(np.linalg.norm(after - before) / 4 + slide)
+
+
+def test_a_contact_broken_for_two_frames_is_one_contact() -> None:
+    clip = _sliding()
+    contact = np.zeros((1, 40, 2), bool)
+    contact[0, 5:18, 1] = contact[0, 20:33, 1] = True  # the contact head flickers off for two frames
+    out = plant_feet(clip[None], contact, skeleton(), FEET, HEIGHTS, ground=False)[0]
+    held = clip[5:33, 6, [0, 2]].mean(0)
+    np.testing.assert_allclose(out[5:33, 6, [0, 2]], np.broadcast_to(held, (28, 2)), atol=1e-9)
+
+
+def test_a_pin_past_a_straight_leg_s_reach_drags_the_foot_instead_of_lifting_it() -> None:
+    clip = _sliding(speed=1.5, hip_height=0.9)  # the leg straight: any pin away from under the hip lifts it
+    contact = np.zeros((1, 40, 2), bool)
+    contact[0, 10:30, 1] = True
+    out = plant_feet(clip[None], contact, skeleton(), FEET, HEIGHTS, ground=False)[0]
+    np.testing.assert_allclose(_lengths(out)[:, 2:], _lengths(clip)[:, 2:], atol=1e-9)
+    toe = out[10:30, 6]
+    assert toe[:, 1].max() <= PLANT_SLACK + 1e-9  # lifted at most the slack, never 5 cm
+    reachable = np.sqrt((0.9 + PLANT_SLACK) ** 2 - 0.91**2)  # the ankle comes down 1 cm, to the floor
+    moved = np.linalg.norm(toe[:, [0, 2]] - clip[10:30, 6, [0, 2]], axis=1)
+    assert moved.max() <= reachable + 1e-9 < PLANT_REACH
+    # still held back as far as the leg allows: 1.4 m of sliding becomes under 1 m
+    assert np.ptp(toe[:, 2]) < np.ptp(clip[10:30, 6, 2]) - 0.4
 
 
 def test_the_cleaned_leg_is_one_a_bvh_holds() -> None:
