@@ -71,6 +71,12 @@ def parse_args() -> argparse.Namespace:
         help="how the w_speed term compares joint speeds (log: relative errors)",
     )
     p.add_argument(
+        "--speed-span",
+        type=int,
+        default=0,
+        help="frames per span over which the w_speed term compares mean speeds (0: the whole window)",
+    )
+    p.add_argument(
         "--spectrum-no-legs", action="store_true", help="leave the legs out of the w_spectrum term"
     )
     p.add_argument(
@@ -123,6 +129,7 @@ def main() -> int:
         tf_decay_epochs=args.tf_decay_epochs,
         contrastive_pull=args.contrastive_pull,
         speed_error=args.speed_error,
+        speed_span=args.speed_span,
         spectrum_legs=not args.spectrum_no_legs,
         free_skate_contacts=args.free_skate_contacts,
         **weights,
@@ -303,9 +310,8 @@ def model_switches(config: OdmoConfig) -> str:
         parts.append(f"`w_free = {config.w_free:g}` (a reconstruction loss on a free-running decode)")
     if config.w_speed > 0:
         what = "log " if config.speed_error == "log" else ""
-        parts.append(
-            f"`w_speed = {config.w_speed:g}` (a loss on that decode's per-window {what}joint speeds)"
-        )
+        per = f"{config.speed_span}-frame span" if config.speed_span else "window"
+        parts.append(f"`w_speed = {config.w_speed:g}` (a loss on that decode's per-{per} {what}joint speeds)")
     if config.w_spectrum > 0:
         legs = "" if config.spectrum_legs else ", legs left out"
         parts.append(

@@ -20,6 +20,7 @@ _BEFORE_SWITCHES = {
     "w_free": 0.0,
     "w_speed": 0.0,
     "speed_error": "absolute",
+    "speed_span": 0,
     "w_spectrum": 0.0,
     "w_free_skate": 0.0,
     "spectrum_legs": True,
@@ -62,10 +63,12 @@ class OdmoConfig(ModelConfig):
     loss on positions, does not reward a still mean pose when the phase is uncertain); both are off by
     default, measured in the README ("Where the model differs from the paper"). The skate and speed
     terms are in m²/s²; ``speed_error`` "log" compares log speeds instead (relative errors: a slow
-    wave's hand weighs as much as a run's feet). ``w_spectrum`` weights the squared error of that decode's
-    log amplitude spectra per joint (how much it moves at each rhythm, phase-free: a slow raise and a
-    quick wave of one mean speed differ there). ``w_free_skate`` weights the skate loss on that decode's
-    feet (the motion sampling shows; ``w_skate`` sees the teacher-forced one), where the data's feet are
+    wave's hand weighs as much as a run's feet); ``speed_span`` > 0 compares them over each run of that
+    many frames instead of the whole window (a burst that then stops no longer passes). ``w_spectrum``
+    weights the squared error of that decode's log amplitude spectra per joint (how much it moves at
+    each rhythm, phase-free: a slow raise and a quick wave of one mean speed differ there).
+    ``w_free_skate`` weights the skate loss on that decode's feet (the motion sampling shows;
+    ``w_skate`` sees the teacher-forced one), where the data's feet are
     planted (``free_skate_contacts`` "data") or where that decode's own are ("own": a free decode's
     stride drifts out of step with the data's). ``w_foot_height`` weights the squared error of that
     decode's sorted foot heights (how long each foot spends at each height, phase-free), ``w_heading``
@@ -120,6 +123,7 @@ class OdmoConfig(ModelConfig):
     w_free: float = 0.0
     w_speed: float = 0.0
     speed_error: str = "absolute"
+    speed_span: int = 0
     w_spectrum: float = 0.0
     w_free_skate: float = 0.0
     spectrum_legs: bool = True
@@ -134,7 +138,7 @@ class OdmoConfig(ModelConfig):
     NON_NEGATIVE = ("w_recon", "w_traj", "w_consistency", "w_contrastive", "w_prior", "traj_y_weight")
     NON_NEGATIVE += ("w_raw", "w_contact", "w_velocity", "contrastive_pull", "epochs", "tf_decay_epochs")
     NON_NEGATIVE += ("w_skate", "w_free", "w_speed", "w_spectrum", "w_free_skate", "w_foot_height")
-    NON_NEGATIVE += ("w_heading", "w_twist")
+    NON_NEGATIVE += ("w_heading", "w_twist", "speed_span")
     RATES = ("tf_start", "tf_end")
     CHOICES: ClassVar[dict[str, tuple[str, ...]]] = {
         "train_precision": TRAIN_PRECISIONS,

@@ -56,13 +56,28 @@ def velocity_loss(pred: Tensor, target: Tensor, mask: Tensor, fps: float) -> Ten
     return masked_mse(pred.diff(dim=1) * fps, target.diff(dim=1) * fps, both)
 
 
-def mean_speeds(joints: Tensor, mask: Tensor, fps: float, root: int) -> Tensor:
-    """Per window and joint (B, J): mean speed (m/s) of the root-relative joints (B, T, J, 3) over pairs
-    of real frames; independent of the motion's phase."""
+def _span_sums(steps: Tensor, span: int) -> Tensor:
+    """Sums (B, K, ...) of per-step values (B, S, ...) over runs of ``span`` steps (0: all of them; the
+    last run may be shorter)."""
+    n = steps.shape[1]
+    span = n if span <= 0 else min(span, n)
+    padded = torch.nn.functional.pad(steps.movedim(1, -1), (0, -n % span)).movedim(-1, 1)
+    return padded.unflatten(1, (-1, span)).sum(2)
+
+
+def _real_pairs(mask: Tensor) -> Tensor:
+    """(B, T - 1) 1 where a frame and the next are both real, else 0."""
+    return (mask[:, 1:].bool() & mask[:, :-1].bool()).float()
+
+
+def mean_speeds(joints: Tensor, mask: Tensor, fps: float, root: int, span: int = 0) -> Tensor:
+    """Per window, span and joint (B, K, J): mean speed (m/s) of the root-relative joints (B, T, J, 3)
+    over the pairs of real frames in each run of ``span`` frame steps (0: one span, the whole window;
+    a span without a real pair reads 0); independent of the motion's phase."""
     local = joints - joints[:, :, root : root + 1]
-    both = (mask[:, 1:].bool() & mask[:, :-1].bool()).to(joints.dtype)[:, :, None]
+    both = _real_pairs(mask).to(joints.dtype)[:, :, None]
     speed = local.diff(dim=1).square().sum(-1).clamp(min=1e-12).sqrt() * fps
-    return (speed * both).sum(1) / both.sum(1).clamp(min=1.0)
+    return _span_sums(speed * both, span) / _span_sums(both, span).clamp(min=1.0)
 
 
 #: Speed (m/s) added to both sides of the log-speed error, so that joints at rest weigh little.
@@ -70,17 +85,21 @@ LOG_SPEED_FLOOR = 0.05
 
 
 def speed_loss(
-    pred: Tensor, target: Tensor, mask: Tensor, fps: float, root: int, log: bool = False
+    pred: Tensor, target: Tensor, mask: Tensor, fps: float, root: int, log: bool = False, span: int = 0
 ) -> Tensor:
-    """Squared error of the per-window mean joint speeds of ``pred`` against ``target`` (B, T, J, 3): the
-    motion an L2 loss on positions lets shrink towards a mean pose. In m²/s², or with ``log`` of
+    """Squared error of the mean joint speeds of ``pred`` against ``target`` (B, T, J, 3) in each run of
+    ``span`` frame steps (0: the whole window; spans without real frames left out): the motion an L2
+    loss on positions lets shrink towards a mean pose. Spans shorter than the window keep a decode from
+    meeting the window's mean speed with a burst that then stops. In m²/s², or with ``log`` of
     log(speed + LOG_SPEED_FLOOR), so that a hand waving at a third of its speed costs as much as a foot
     running at a third of its own."""
-    pred_speed, target_speed = mean_speeds(pred, mask, fps, root), mean_speeds(target, mask, fps, root)
+    pred_speed = mean_speeds(pred, mask, fps, root, span)
+    target_speed = mean_speeds(target, mask, fps, root, span)
     if log:
         pred_speed = torch.log(pred_speed + LOG_SPEED_FLOOR)
         target_speed = torch.log(target_speed + LOG_SPEED_FLOOR)
-    return (pred_speed - target_speed).square().mean()
+    real = _span_sums(_real_pairs(mask), span) > 0  # (B, K)
+    return (pred_speed - target_speed).square().mean(-1)[real].mean()
 
 
 #: Amplitude (m) added to both sides of the log-spectrum error, so that bins without motion weigh little.
@@ -302,9 +321,8 @@ def odmo_losses(
     twist_on = free_joints is not None and hips is not None and shoulders is not None
     if free_joints is not None:
         terms["free"] = masked_mse(free_joints, joints, mask)
-        terms["speed"] = speed_loss(
-            free_joints, joints, mask, config.fps, root, log=config.speed_error == "log"
-        )
+        log = config.speed_error == "log"
+        terms["speed"] = speed_loss(free_joints, joints, mask, config.fps, root, log, config.speed_span)
         terms["spectrum"] = spectrum_loss(free_joints, joints, mask, root, spectrum_on)
         if hips is not None:
             terms["heading"] = heading_loss(free_joints, joints, mask, hips, config.fps)

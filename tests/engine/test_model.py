@@ -320,14 +320,14 @@ def test_mean_speeds_are_root_relative_and_phase_free() -> None:
     speeds = mean_speeds(_circling(0.0), mask, 20.0, root=0)
     # chord of 1/20 turn at 20 fps: 2·r·sin(π/20)·20 m/s (≈ 2π·r), the root's own walk left out
     torch.testing.assert_close(
-        speeds[0, 1], torch.tensor(2 * 0.2 * math.sin(math.pi / 20) * 20, dtype=torch.float64)
+        speeds[0, 0, 1], torch.tensor(2 * 0.2 * math.sin(math.pi / 20) * 20, dtype=torch.float64)
     )
-    assert speeds[0, 0] < 1e-4  # the root itself: only the sqrt guard (1e-6 m a frame)
+    assert speeds[0, 0, 0] < 1e-4  # the root itself: only the sqrt guard (1e-6 m a frame)
     # the same motion half a turn later: no speed error; a hand held still: the whole speed
     assert speed_loss(_circling(math.pi), _circling(0.0), mask, 20.0, root=0) < 1e-12
     still = _circling(0.0)
     still[:, :, 1] = still[:, :, 0] + torch.tensor([0.2, 0.0, 0.0], dtype=torch.float64)
-    expected = speeds[0, 1] ** 2 / 2
+    expected = speeds[0, 0, 1] ** 2 / 2
     torch.testing.assert_close(
         speed_loss(still, _circling(0.0), mask, 20.0, root=0), expected, rtol=1e-4, atol=0
     )
@@ -338,6 +338,42 @@ def test_mean_speeds_are_root_relative_and_phase_free() -> None:
     moved[:, 20:] += 5.0 * torch.rand(1, 20, 2, 3, dtype=torch.float64)
     torch.testing.assert_close(
         mean_speeds(moved, padded, 20.0, 0), mean_speeds(_circling(0.0), padded, 20.0, 0)
+    )
+
+
+def _hand_along_y(speeds: list[float]) -> torch.Tensor:
+    """(1, len + 1, 2, 3): a still root and a hand moving along y at each step's speed (m/s, 20 fps)."""
+    y = torch.cat([torch.zeros(1), torch.cumsum(torch.tensor(speeds, dtype=torch.float64) / 20.0, 0)])
+    joints = torch.zeros(1, len(y), 2, 3, dtype=torch.float64)
+    joints[0, :, 1, 1] = y
+    return joints
+
+
+def test_speed_spans_see_a_burst_that_the_window_mean_does_not() -> None:
+    real = _hand_along_y([0.5] * 39)  # 0.5 m/s throughout
+    burst = _hand_along_y([1.5] * 13 + [0.0] * 26)  # the same window mean, all of it in the first third
+    mask = torch.ones(1, 40, dtype=torch.bool)
+    torch.testing.assert_close(
+        mean_speeds(burst, mask, 20.0, 0, span=13)[0, :, 1].double(),
+        torch.tensor([1.5, 0.0, 0.0], dtype=torch.float64),
+        atol=1e-4,
+        rtol=0,
+    )
+    assert speed_loss(burst, real, mask, 20.0, root=0) < 1e-8
+    # per span (1.0², 0.5², 0.5²), over two joints of which the root has no error
+    torch.testing.assert_close(
+        speed_loss(burst, real, mask, 20.0, root=0, span=13),
+        torch.tensor((1.0 + 0.25 + 0.25) / 2 / 3, dtype=torch.float64),
+        atol=1e-4,
+        rtol=0,
+    )
+    # spans with no real frame are left out, not counted as still
+    padded = mask.clone()
+    padded[0, 20:] = False
+    short = torch.ones(1, 20, dtype=torch.bool)
+    torch.testing.assert_close(
+        speed_loss(burst, real, padded, 20.0, root=0, span=10),
+        speed_loss(burst[:, :20], real[:, :20], short, 20.0, root=0, span=10),
     )
 
 
@@ -353,7 +389,7 @@ def test_log_speed_loss_weighs_relative_errors() -> None:
         slow[:, :, 1] = real[:, :, 0] + (real[:, :, 1] - real[:, :, 0]) / 3  # a third of the radius
         return speed_loss(slow, real, mask, 20.0, root=0, log=log)
 
-    speed = mean_speeds(_circling(0.0, 0.5), mask, 20.0, root=0)[0, 1]
+    speed = mean_speeds(_circling(0.0, 0.5), mask, 20.0, root=0)[0, 0, 1]
     expected = (math.log(speed / 3 + floor) - math.log(speed + floor)) ** 2 / 2  # the root: no error
     torch.testing.assert_close(loss(0.5, log=True), torch.tensor(expected, dtype=torch.float64))
     assert 0.75 < float(loss(0.1, log=True) / loss(0.5, log=True)) < 1.0
