@@ -194,12 +194,11 @@ def plant_feet(
         delta = _pin_shift(out[:, :, feet[low]], toe_planted, rest.min(), ramp, reach)
         moved = out[:, :, [feet[c] for c in cols]] + delta[:, :, None]
         delta[..., 1] += np.maximum(0.0, (rest - moved[..., 1]).max(axis=-1))
-        delta = _within_leg(delta, out[:, :, hip], out[:, :, knee], out[:, :, ankle])
         moving = np.abs(delta).max(axis=-1) > 1e-9  # (B, T): frames left alone stay bit-identical
         if not moving.any():
             continue
         legs = out[moving]  # (N, J, 3)
-        target = legs[:, ankle] + delta[moving]
+        target = legs[:, ankle] + _within_leg(delta[moving], legs[:, hip], legs[:, knee], legs[:, ankle])
         new_knee, reached = _two_bone(legs[:, hip], legs[:, knee], legs[:, ankle], target)
         legs[:, below] += (reached - legs[:, ankle])[:, None]
         legs[:, knee], legs[:, ankle] = new_knee, reached
@@ -251,7 +250,7 @@ def _pin_shift(pos: np.ndarray, planted: np.ndarray, rest: float, ramp: int, rea
 
 
 def _within_leg(delta: np.ndarray, hip: np.ndarray, knee: np.ndarray, ankle: np.ndarray) -> np.ndarray:
-    """``delta`` (B, T, 3) with its floor part shortened where it would put the ankle further from the
+    """``delta`` (..., 3) with its floor part shortened where it would put the ankle further from the
     hip than the leg's length plus ``PLANT_SLACK``."""
     reach = np.linalg.norm(knee - hip, axis=-1) + np.linalg.norm(ankle - knee, axis=-1) + PLANT_SLACK
     start = ankle - hip
