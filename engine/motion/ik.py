@@ -237,7 +237,7 @@ def _pin_shift(pos: np.ndarray, planted: np.ndarray, rest: float, ramp: int, rea
         mean = np.bincount(ids, weights=pos[..., axis][planted], minlength=count.size) / np.maximum(count, 1)
         delta[..., axis][planted] = mean[ids] - pos[..., axis][planted]
     far = np.hypot(delta[..., 0], delta[..., 2])
-    delta[..., [0, 2]] *= (reach / np.maximum(far, reach))[..., None]
+    delta[..., [0, 2]] *= np.minimum(1.0, reach / np.maximum(far, _EPS))[..., None]
     delta[..., 1][planted] = rest - pos[..., 1][planted]
     last, nxt = _spans(planted)
     frames = np.arange(t)[None, :]
