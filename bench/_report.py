@@ -48,8 +48,9 @@ def format_section(section: str, rows: list[dict[str, Any]], command: str) -> st
 
 def replace_section(path: Path, heading: str, body: str, before: str | tuple[str, ...]) -> None:
     """Replace the section headed ``heading`` (up to the next ``## ``) of ``path`` with ``body``, or add
-    it in front of the first of the lines ``before`` the file has; atomically."""
+    it in front of the first of the lines ``before`` the file has, followed by one blank line; atomically."""
     text = path.read_text(encoding="utf-8")
+    body = body.rstrip("\n") + "\n\n"
     found = re.search(rf"^{re.escape(heading)}\n.*?(?=^## )", text, re.MULTILINE | re.DOTALL)
     if found:
         text = text[: found.start()] + body + text[found.end() :]

@@ -125,8 +125,8 @@ def main() -> int:
     atomic_write_text(
         out / "heldout_clips.txt", "\n".join(sorted(Path(c.meta["source"]).name for c in held)) + "\n"
     )
-    meta = report["meta"] | {"model": out.name, "classifier": repo_path(args.classifier)}
-    atomic_write_text(out / "eval.json", json.dumps(report | {"meta": meta}, indent=2))
+    report = report | {"meta": report["meta"] | {"model": out.name, "classifier": repo_path(args.classifier)}}
+    atomic_write_text(out / "eval.json", json.dumps(report, indent=2))
     atomic_write_text(out / "MODEL_CARD.md", model_card(report, generator, sys.argv[1:], len(held)))
     if not args.no_results:
         anchors = ("## Unconditional: MoDi", "## How it was made")
