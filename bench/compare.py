@@ -137,6 +137,7 @@ PER_ACTION_COLUMNS = (
     ("accuracy", "accuracy", 2),
     ("hand speed (m/s)", "hand_speed_m_s", 2),
     ("hand amp. (m)", "hand_amplitude_m", 3),
+    ("late hand speed (m/s)", "late_hand_speed_m_s", 2),
     ("foot speed (m/s)", "foot_speed_m_s", 2),
     ("foot amp. (m)", "foot_amplitude_m", 3),
     ("jerk (m/s³)", "jerk_m_s3", 0),

@@ -42,6 +42,7 @@ PER_ACTION_COLUMNS = (
     ("accuracy", "accuracy"),
     ("hand_speed_m_s", "hand speed"),
     ("hand_amplitude_m", "hand amp."),
+    ("late_hand_speed_m_s", "late hand"),
     ("foot_speed_m_s", "foot speed"),
     ("foot_amplitude_m", "foot amp."),
     ("jerk_m_s3", "jerk"),

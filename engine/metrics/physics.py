@@ -12,6 +12,9 @@ Heading (``heading_error``): the direction of travel is the root's horizontal di
 axis between the two hips (the top joints of the leg chains) at the span's middle; only spans where the
 root moves at ``MOVING_SPEED`` (0.5 m/s) or more count.
 
+Late hand speed: the mean hand speed over the last third of each clip (``LATE_SHARE``), beside the mean
+over the whole clip: a decode that meets the mean with a burst and then stops shows there.
+
 Torso twist (``torso_twist``): the angle, seen from above, between the axis through the tops of the two
 arms (the shoulders) and the axis through the two hips, in every frame (real Bandai walks: 6.8° mean
 absolute, one clip per style, from 2.2° elderly to 13.7° active; waves about 1°).
@@ -32,6 +35,7 @@ FLOAT_HEIGHT = 0.10
 FLOAT_SECONDS = 0.5
 HEADING_SPAN = 0.5
 MOVING_SPEED = 0.5
+LATE_SHARE = 1 / 3
 
 
 def bone_length_cv(joints: np.ndarray, parents: np.ndarray) -> float:
@@ -89,10 +93,11 @@ def float_share(clips: Sequence[np.ndarray], feet: Sequence[int], fps: float) ->
     return float(np.mean([floats(c, feet, fps) for c in clips]))
 
 
-def limb_speed(joints: np.ndarray, limbs: Sequence[int], fps: float) -> float:
-    """Mean speed (m/s) of joints ``limbs`` over the frames of one clip."""
+def limb_speed(joints: np.ndarray, limbs: Sequence[int], fps: float, last: float = 1.0) -> float:
+    """Mean speed (m/s) of joints ``limbs`` over the last ``last`` share of a clip's frame steps (1: all)."""
     pos = np.asarray(joints, dtype=np.float64)[:, list(limbs)]
-    return float(np.linalg.norm(np.diff(pos, axis=0), axis=-1).mean() * fps)
+    steps = np.linalg.norm(np.diff(pos, axis=0), axis=-1)
+    return float(steps[-max(1, round(len(steps) * last)) :].mean() * fps)
 
 
 def oscillation_amplitude(joints: np.ndarray, limbs: Sequence[int], root: int) -> float:
@@ -163,6 +168,8 @@ def physics_metrics(clips: Sequence[np.ndarray], skeleton: Skeleton, fps: float)
             out[f"{name}_amplitude_m"] = float(
                 np.mean([oscillation_amplitude(c, limbs, root) for c in clips])
             )
+    if hands:
+        out["late_hand_speed_m_s"] = float(np.mean([limb_speed(c, hands, fps, LATE_SHARE) for c in clips]))
     out["jerk_m_s3"] = float(np.nanmean([mean_jerk(c, fps) for c in clips]))
     if hips is not None:  # travel is the pelvis's (the hips' parent): a rig's root may stay at the origin
         out["heading_error_deg"] = heading_error(clips, hips, int(skeleton.parents[hips[0]]), fps)

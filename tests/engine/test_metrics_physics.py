@@ -101,6 +101,11 @@ def test_limb_speed_amplitude_and_jerk_of_known_motion() -> None:
     assert physics.oscillation_amplitude(clip, [2], 0) == pytest.approx(amp / np.sqrt(2), rel=1e-3)
     # mean |d/dt| of a sine: 4·A·f per period (sampled finely enough to be within 1 %)
     assert physics.limb_speed(clip, [2], FPS) == pytest.approx(4 * amp * freq, rel=0.01)
+    assert physics.limb_speed(clip, [2], FPS, last=1 / 3) == pytest.approx(4 * amp * freq, rel=0.03)
+    stops = clip.copy()
+    stops[100:, 2] = stops[100, 2]  # the hand waves for 5 s, then holds
+    assert physics.limb_speed(stops, [2], FPS) == pytest.approx(2 * amp * freq, rel=0.02)  # half of it
+    assert physics.limb_speed(stops, [2], FPS, last=1 / 3) == 0.0  # ...and none of it late
     cubic = standing(10)
     cubic[:, :, 0] += (np.arange(10) / FPS)[:, None] ** 3  # x = t³: jerk 6 m/s³ everywhere
     assert physics.mean_jerk(cubic, FPS) == pytest.approx(6.0)
@@ -116,6 +121,7 @@ def test_physics_metrics_row() -> None:
         "float_share",
         "hand_speed_m_s",
         "hand_amplitude_m",
+        "late_hand_speed_m_s",
         "foot_speed_m_s",
         "foot_amplitude_m",
         "jerk_m_s3",
