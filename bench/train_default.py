@@ -77,6 +77,12 @@ def parse_args() -> argparse.Namespace:
         help="frames per span over which the w_speed term compares mean speeds (0: the whole window)",
     )
     p.add_argument(
+        "--spectrum-span",
+        type=int,
+        default=0,
+        help="frames per span over which the w_spectrum term compares spectra (0: the whole window)",
+    )
+    p.add_argument(
         "--spectrum-no-legs", action="store_true", help="leave the legs out of the w_spectrum term"
     )
     p.add_argument(
@@ -130,6 +136,7 @@ def main() -> int:
         contrastive_pull=args.contrastive_pull,
         speed_error=args.speed_error,
         speed_span=args.speed_span,
+        spectrum_span=args.spectrum_span,
         spectrum_legs=not args.spectrum_no_legs,
         free_skate_contacts=args.free_skate_contacts,
         **weights,
@@ -314,8 +321,9 @@ def model_switches(config: OdmoConfig) -> str:
         parts.append(f"`w_speed = {config.w_speed:g}` (a loss on that decode's per-{per} {what}joint speeds)")
     if config.w_spectrum > 0:
         legs = "" if config.spectrum_legs else ", legs left out"
+        per = f" per {config.spectrum_span}-frame span" if config.spectrum_span else ""
         parts.append(
-            f"`w_spectrum = {config.w_spectrum:g}` (a loss on that decode's log amplitude spectra{legs})"
+            f"`w_spectrum = {config.w_spectrum:g}` (a loss on that decode's log amplitude spectra{per}{legs})"
         )
     if config.w_free_skate > 0:
         where = "its own" if config.free_skate_contacts == "own" else "the data's"

@@ -21,6 +21,7 @@ _BEFORE_SWITCHES = {
     "w_speed": 0.0,
     "speed_error": "absolute",
     "speed_span": 0,
+    "spectrum_span": 0,
     "w_spectrum": 0.0,
     "w_free_skate": 0.0,
     "spectrum_legs": True,
@@ -66,7 +67,8 @@ class OdmoConfig(ModelConfig):
     wave's hand weighs as much as a run's feet); ``speed_span`` > 0 compares them over each run of that
     many frames instead of the whole window (a burst that then stops no longer passes). ``w_spectrum``
     weights the squared error of that decode's log amplitude spectra per joint (how much it moves at
-    each rhythm, phase-free: a slow raise and a quick wave of one mean speed differ there).
+    each rhythm, phase-free: a slow raise and a quick wave of one mean speed differ there), over each
+    run of ``spectrum_span`` frames if > 0.
     ``w_free_skate`` weights the skate loss on that decode's feet (the motion sampling shows;
     ``w_skate`` sees the teacher-forced one), where the data's feet are
     planted (``free_skate_contacts`` "data") or where that decode's own are ("own": a free decode's
@@ -125,6 +127,7 @@ class OdmoConfig(ModelConfig):
     speed_error: str = "absolute"
     speed_span: int = 0
     w_spectrum: float = 0.0
+    spectrum_span: int = 0
     w_free_skate: float = 0.0
     spectrum_legs: bool = True
     free_skate_contacts: str = "data"
@@ -138,7 +141,7 @@ class OdmoConfig(ModelConfig):
     NON_NEGATIVE = ("w_recon", "w_traj", "w_consistency", "w_contrastive", "w_prior", "traj_y_weight")
     NON_NEGATIVE += ("w_raw", "w_contact", "w_velocity", "contrastive_pull", "epochs", "tf_decay_epochs")
     NON_NEGATIVE += ("w_skate", "w_free", "w_speed", "w_spectrum", "w_free_skate", "w_foot_height")
-    NON_NEGATIVE += ("w_heading", "w_twist", "speed_span")
+    NON_NEGATIVE += ("w_heading", "w_twist", "speed_span", "spectrum_span")
     RATES = ("tf_start", "tf_end")
     CHOICES: ClassVar[dict[str, tuple[str, ...]]] = {
         "train_precision": TRAIN_PRECISIONS,

@@ -56,13 +56,19 @@ def velocity_loss(pred: Tensor, target: Tensor, mask: Tensor, fps: float) -> Ten
     return masked_mse(pred.diff(dim=1) * fps, target.diff(dim=1) * fps, both)
 
 
+def _spans(x: Tensor, span: int) -> Tensor:
+    """Per-frame values (B, T, ...) cut into runs of ``span`` frames (0: one run, the whole window) →
+    (B, K, span, ...), the last run padded with zeros."""
+    n = x.shape[1]
+    span = n if span <= 0 else min(span, n)
+    padded = torch.nn.functional.pad(x.movedim(1, -1), (0, -n % span)).movedim(-1, 1)
+    return padded.unflatten(1, (-1, span))
+
+
 def _span_sums(steps: Tensor, span: int) -> Tensor:
     """Sums (B, K, ...) of per-step values (B, S, ...) over runs of ``span`` steps (0: all of them; the
     last run may be shorter)."""
-    n = steps.shape[1]
-    span = n if span <= 0 else min(span, n)
-    padded = torch.nn.functional.pad(steps.movedim(1, -1), (0, -n % span)).movedim(-1, 1)
-    return padded.unflatten(1, (-1, span)).sum(2)
+    return _spans(steps, span).sum(2)
 
 
 def _real_pairs(mask: Tensor) -> Tensor:
@@ -147,15 +153,25 @@ class LossJoints:
 
 
 def spectrum_loss(
-    pred: Tensor, target: Tensor, mask: Tensor, root: int, on: Sequence[int] | None = None
+    pred: Tensor,
+    target: Tensor,
+    mask: Tensor,
+    root: int,
+    on: Sequence[int] | None = None,
+    span: int = 0,
 ) -> Tensor:
     """Squared error of the log amplitude spectra (``amplitude_spectra`` + SPECTRUM_FLOOR) of ``pred``
     against ``target`` (B, T, J, 3) over the joints ``on`` (None: all): how much each joint moves at each
-    rhythm, whatever the phase, so that a slow raise and a quick wave of the same speed differ."""
+    rhythm, whatever the phase, so that a slow raise and a quick wave of the same speed differ. With
+    ``span`` > 0 the spectra are taken over each run of that many frames (runs with fewer than two real
+    frames left out), so that a burst which then stops no longer matches a steady motion."""
     pick = slice(None) if on is None else list(on)
+    pred, target = _spans(pred, span).flatten(0, 1), _spans(target, span).flatten(0, 1)
+    mask = _spans(mask.to(pred.dtype), span).flatten(0, 1)
     pred_log = torch.log(amplitude_spectra(pred, mask, root)[:, pick] + SPECTRUM_FLOOR)
     real_log = torch.log(amplitude_spectra(target, mask, root)[:, pick] + SPECTRUM_FLOOR)
-    return (pred_log - real_log).square().mean()
+    real = mask.sum(1) >= 2
+    return (pred_log - real_log).square()[real].mean()
 
 
 def contact_loss(logits: Tensor, labels: Tensor, mask: Tensor) -> Tensor:
@@ -323,7 +339,7 @@ def odmo_losses(
         terms["free"] = masked_mse(free_joints, joints, mask)
         log = config.speed_error == "log"
         terms["speed"] = speed_loss(free_joints, joints, mask, config.fps, root, log, config.speed_span)
-        terms["spectrum"] = spectrum_loss(free_joints, joints, mask, root, spectrum_on)
+        terms["spectrum"] = spectrum_loss(free_joints, joints, mask, root, spectrum_on, config.spectrum_span)
         if hips is not None:
             terms["heading"] = heading_loss(free_joints, joints, mask, hips, config.fps)
         if twist_on:

@@ -429,6 +429,27 @@ def test_amplitude_spectra_put_a_swing_in_its_bin() -> None:
     torch.testing.assert_close(amplitude_spectra(moved, padded, 0), amplitude_spectra(quick, padded, 0))
 
 
+def test_spectrum_spans_see_a_wave_that_stops() -> None:
+    """A 0.3 m swing for one second then still, against a steady 0.1 m swing: per 20-frame span
+    (bins of 1 Hz) the first span's bin 2 holds 3A/2 against A/2 and the two still spans nothing
+    against A/2, of 3 spans × 2 joints × 11 bins; runs of fewer than two real frames are left out."""
+    mask = torch.ones(1, 60, dtype=torch.bool)
+    steady = _swinging(2.0, 0.1)
+    stops = _swinging(2.0, 0.3)
+    stops[:, 20:, 1] = stops[:, 20:, 0] + torch.tensor([0.0, 1.0, 0.0], dtype=torch.float64)
+    a, floor = 0.1, SPECTRUM_FLOOR
+    first = math.log((1.5 * a + floor) / (0.5 * a + floor)) ** 2
+    errors = first + 2 * math.log((0.5 * a + floor) / floor) ** 2
+    loss = spectrum_loss(stops, steady, mask, root=0, span=20)
+    assert float(loss) == pytest.approx(errors / 66, rel=1e-4)
+    assert float(spectrum_loss(steady, stops, mask, root=0, span=20)) == pytest.approx(float(loss))
+    assert float(spectrum_loss(_swinging(2.0, 0.1, frames=70)[:, 10:], steady, mask, 0, span=20)) < 1e-12
+    one_more = torch.ones(1, 61, dtype=torch.bool)
+    longer = _swinging(2.0, 0.1, frames=61), _swinging(2.0, 0.3, frames=61)
+    longer[1][:, 20:, 1] = longer[1][:, 20:, 0] + torch.tensor([0.0, 1.0, 0.0], dtype=torch.float64)
+    torch.testing.assert_close(spectrum_loss(longer[1], longer[0], one_more, 0, span=20), loss)
+
+
 def test_skate_loss_is_the_squared_speed_of_planted_feet() -> None:
     t = torch.arange(10, dtype=torch.float32)
     feet = torch.zeros(1, 10, 2, 3)
