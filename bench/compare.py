@@ -39,6 +39,7 @@ from engine.metrics.a2m_eval import evaluate_a2m
 from engine.metrics.by_kind import evaluate_generator
 from engine.metrics.classifier import Classifier, load_classifier, train_classifier
 from engine.metrics.evaluate import evaluate
+from engine.metrics.per_action import per_action_markdown
 from engine.model.a2m import A2mConfig
 from engine.model.config import OdmoConfig
 from engine.modelio import META_FILE, LoadedModel, load_model
@@ -132,21 +133,6 @@ UNCONDITIONAL_COLUMNS = (
     ("Hand speed (m/s) →", "hand_speed_m_s", 3),
     ("Jerk (m/s³) →", "jerk_m_s3", 0),
 )
-# Per-action tables (``per_action_entries``) against real: (header, metric key, decimals).
-PER_ACTION_COLUMNS = (
-    ("accuracy", "accuracy", 2),
-    ("hand speed (m/s)", "hand_speed_m_s", 2),
-    ("hand amp. (m)", "hand_amplitude_m", 3),
-    ("late hand speed (m/s)", "late_hand_speed_m_s", 2),
-    ("foot speed (m/s)", "foot_speed_m_s", 2),
-    ("foot amp. (m)", "foot_amplitude_m", 3),
-    ("jerk (m/s³)", "jerk_m_s3", 0),
-    ("bone cv", "bone_length_cv", 4),
-    ("foot skate (m/s)", "foot_skate_m_s", 3),
-    ("floating", "float_share", 2),
-    ("heading (°)", "heading_error_deg", 1),
-    ("twist (°)", "torso_twist_deg", 1),
-)
 
 
 def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
@@ -224,25 +210,10 @@ def _cell(block: dict[str, dict[str, float]], key: str, decimals: int) -> str:
     return f"{value['mean']:.{decimals}f} ± {value['ci95']:.{decimals}f}"
 
 
-def per_action_markdown(per_action: dict[str, Any], label: str) -> list[str]:
+def per_action_section(per_action: dict[str, Any], label: str) -> list[str]:
     """Markdown lines: the per-action physical figures of one row, generated / real."""
-    if not per_action:
-        return []
-    lines = [
-        f"## Per action: {label} / real",
-        "",
-        "| action | " + " | ".join(h for h, _, _ in PER_ACTION_COLUMNS) + " |",
-    ]
-    lines.append("|---|" + "|".join("---" for _ in PER_ACTION_COLUMNS) + "|")
-    for action, sides in per_action.items():
-        cells = []
-        for _, key, d in PER_ACTION_COLUMNS:
-            gen, real = sides["generated"].get(key), sides["real"].get(key)
-            cells.append(
-                "n/a" if gen is None or real is None else f"{gen['mean']:.{d}f} / {real['mean']:.{d}f}"
-            )
-        lines.append(f"| {action} | " + " | ".join(cells) + " |")
-    return [*lines, ""]
+    rows = per_action_markdown(per_action)
+    return [f"## Per action: {label} / real", "", *rows, ""] if rows else []
 
 
 def per_action_entries(entries: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
@@ -291,7 +262,7 @@ def results_markdown(
         lines.append(f"| {name} | " + " | ".join(cells) + " |")
     lines.append("")
     for entry in per_action_entries(entries):
-        lines += per_action_markdown(entry["per_action"], names[entry["row"]])
+        lines += per_action_section(entry["per_action"], names[entry["row"]])
     if dvgan is not None:
         lines += results_section(dvgan)
     if unconditional is not None:

@@ -7,6 +7,7 @@ from pathlib import Path
 from typing import Any
 
 from engine.fileio import atomic_write_text
+from engine.metrics.per_action import per_action_markdown
 
 METRICS = (
     ("accuracy", "Recognition accuracy (0..1)"),
@@ -35,21 +36,6 @@ METRICS = (
     ("jerk_m_s3", "Mean jerk (m/s³)"),
     ("heading_error_deg", "Heading: body's facing line against its direction of travel (degrees)"),
     ("torso_twist_deg", "Torso twist: shoulders' axis against the hips' (degrees, mean absolute)"),
-)
-#: Per-action columns of the card: (metric, heading, format).
-PER_ACTION = (
-    ("accuracy", "accuracy", "{:.2f}"),
-    ("bone_length_cv", "bone cv", "{:.2%}"),
-    ("foot_skate_m_s", "planted-foot speed (m/s)", "{:.3f}"),
-    ("floor_penetration", "frames under floor", "{:.2%}"),
-    ("float_share", "floating clips", "{:.0%}"),
-    ("hand_speed_m_s", "hand speed (m/s)", "{:.2f}"),
-    ("hand_amplitude_m", "hand amp. (m)", "{:.3f}"),
-    ("late_hand_speed_m_s", "late hand speed (m/s)", "{:.2f}"),
-    ("foot_speed_m_s", "foot speed (m/s)", "{:.2f}"),
-    ("jerk_m_s3", "jerk (m/s³)", "{:.0f}"),
-    ("heading_error_deg", "heading (°)", "{:.1f}"),
-    ("torso_twist_deg", "twist (°)", "{:.1f}"),
 )
 SKATE_FLOOR = 0.02  # m/s: the planted-foot target for actions that stand still
 
@@ -96,22 +82,7 @@ def metric_table(report: dict[str, Any], model: str = "ODMO") -> list[str]:
 
 def per_action_table(report: dict[str, Any]) -> list[str]:
     """Markdown rows: each physical figure per action, generated / real."""
-    per_action = report.get("per_action") or {}
-    if not per_action:
-        return []
-    rows = ["| action | " + " | ".join(h for _, h, _ in PER_ACTION) + " |"]
-    rows.append("|---|" + "|".join("---" for _ in PER_ACTION) + "|")
-    for action, sides in per_action.items():
-        cells = []
-        for key, _, fmt in PER_ACTION:
-            gen, real = sides["generated"].get(key), sides["real"].get(key)
-            cells.append(
-                "–"
-                if gen is None or real is None
-                else f"{fmt.format(gen['mean'])} / {fmt.format(real['mean'])}"
-            )
-        rows.append(f"| {action} | " + " | ".join(cells) + " |")
-    return rows
+    return per_action_markdown(report.get("per_action") or {})
 
 
 def physics_targets(report: dict[str, Any]) -> list[str]:

@@ -11,6 +11,7 @@ from pathlib import Path
 from typing import Any
 
 from engine.cli.options import add_up_axis, positive_int
+from engine.metrics.per_action import per_action_cell, present_columns
 
 # Printed order of the metrics table; any other metric follows in the order evaluate() returns it.
 TABLE_ORDER = (
@@ -36,20 +37,6 @@ TABLE_ORDER = (
     "floor_penetration",
     "floor_depth_m",
     "float_share",
-)
-# Columns of the per-action table: (metric, heading).
-PER_ACTION_COLUMNS = (
-    ("accuracy", "accuracy"),
-    ("hand_speed_m_s", "hand speed"),
-    ("hand_amplitude_m", "hand amp."),
-    ("late_hand_speed_m_s", "late hand"),
-    ("foot_speed_m_s", "foot speed"),
-    ("foot_amplitude_m", "foot amp."),
-    ("jerk_m_s3", "jerk"),
-    ("bone_length_cv", "bone cv"),
-    ("foot_skate_m_s", "skate"),
-    ("heading_error_deg", "heading"),
-    ("torso_twist_deg", "twist"),
 )
 
 
@@ -128,20 +115,13 @@ def format_table(result: dict[str, Any]) -> str:
 def format_per_action(result: dict[str, Any]) -> str:
     """Per action, each physical figure as generated / real (means)."""
     per_action = result.get("per_action") or {}
-    columns = [(m, h) for m, h in PER_ACTION_COLUMNS if any(m in v["real"] for v in per_action.values())]
+    columns = present_columns(per_action)
     if not columns:
         return ""
     width = max(len(a) for a in per_action)
-
-    def cell(row: dict[str, Any], metric: str) -> str:
-        gen, real = row["generated"].get(metric), row["real"].get(metric)
-        if gen is None or real is None:
-            return "-"
-        return f"{gen['mean']:.3g} / {real['mean']:.3g}"
-
-    lines = [f"{'action':<{width}}  " + "  ".join(f"{h:>17}" for _, h in columns)]
+    lines = [f"{'action':<{width}}  " + "  ".join(f"{c.short:>17}" for c in columns)]
     lines += [
-        f"{a:<{width}}  " + "  ".join(f"{cell(row, m):>17}" for m, _ in columns)
+        f"{a:<{width}}  " + "  ".join(f"{per_action_cell(row, c):>17}" for c in columns)
         for a, row in per_action.items()
     ]
     return "per action, generated / real (m/s, m, m/s³):\n" + "\n".join(lines)
