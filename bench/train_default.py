@@ -71,6 +71,12 @@ def parse_args() -> argparse.Namespace:
         help="how the w_speed term compares joint speeds (log: relative errors)",
     )
     p.add_argument(
+        "--free-span",
+        type=int,
+        default=1,
+        help="frames per run whose mean pose the w_free term compares (1: every frame's pose)",
+    )
+    p.add_argument(
         "--speed-span",
         type=int,
         default=0,
@@ -135,6 +141,7 @@ def main() -> int:
         tf_decay_epochs=args.tf_decay_epochs,
         contrastive_pull=args.contrastive_pull,
         speed_error=args.speed_error,
+        free_span=args.free_span,
         speed_span=args.speed_span,
         spectrum_span=args.spectrum_span,
         spectrum_legs=not args.spectrum_no_legs,
@@ -314,7 +321,8 @@ def model_switches(config: OdmoConfig) -> str:
     if config.w_velocity > 0:
         parts.append(f"`w_velocity = {config.w_velocity:g}` (an L2 loss on joint velocities)")
     if config.w_free > 0:
-        parts.append(f"`w_free = {config.w_free:g}` (a reconstruction loss on a free-running decode)")
+        per = f" of the mean pose per {config.free_span}-frame span" if config.free_span > 1 else ""
+        parts.append(f"`w_free = {config.w_free:g}` (a reconstruction loss{per} on a free-running decode)")
     if config.w_speed > 0:
         what = "log " if config.speed_error == "log" else ""
         per = f"{config.speed_span}-frame span" if config.speed_span else "window"

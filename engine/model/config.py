@@ -59,7 +59,9 @@ class OdmoConfig(ModelConfig):
     (``w_contact``: cross-entropy; ``w_skate``: the squared speed of generated feet where the data's are
     planted) and the decode-time clean-up that pins planted feet. ``w_velocity`` weights an L2 loss on
     frame-to-frame joint velocities. ``w_free`` weights the reconstruction loss of a free-running decode
-    of the same codes (the decoder as it runs at sampling time, trained through its own poses) and
+    of the same codes (the decoder as it runs at sampling time, trained through its own poses; with
+    ``free_span`` > 1 on the mean pose of each run of that many frames, leaving the motion within a run to
+    the phase-free terms) and
     ``w_speed`` the squared error of that decode's per-window mean joint speeds (which, unlike an L2
     loss on positions, does not reward a still mean pose when the phase is uncertain); both are off by
     default, measured in the README ("Where the model differs from the paper"). The skate and speed
@@ -123,6 +125,7 @@ class OdmoConfig(ModelConfig):
     scheduled_sampling: str = "one_step"
     w_skate: float = 1.0
     w_free: float = 0.0
+    free_span: int = 1
     w_speed: float = 0.0
     speed_error: str = "absolute"
     speed_span: int = 0
@@ -137,7 +140,7 @@ class OdmoConfig(ModelConfig):
     arch: str = "odmo"
 
     POSITIVE = ("n_actions", "n_joints", "window", "fps", "latent_dim", "enc_hidden", "enc_fc", "traj_hidden")
-    POSITIVE += ("motion_hidden", "prior_sigma2", "lr", "batch_size", "epoch_size")
+    POSITIVE += ("motion_hidden", "prior_sigma2", "lr", "batch_size", "epoch_size", "free_span")
     NON_NEGATIVE = ("w_recon", "w_traj", "w_consistency", "w_contrastive", "w_prior", "traj_y_weight")
     NON_NEGATIVE += ("w_raw", "w_contact", "w_velocity", "contrastive_pull", "epochs", "tf_decay_epochs")
     NON_NEGATIVE += ("w_skate", "w_free", "w_speed", "w_spectrum", "w_free_skate", "w_foot_height")

@@ -71,6 +71,19 @@ def _span_sums(steps: Tensor, span: int) -> Tensor:
     return _spans(steps, span).sum(2)
 
 
+def span_mean_mse(pred: Tensor, target: Tensor, mask: Tensor, span: int) -> Tensor:
+    """Squared error of the mean positions of ``pred`` against ``target`` (B, T, J, 3) over the real
+    frames of each run of ``span`` frames, weighted by its real frames (1: ``masked_mse``): the motion
+    within a run is left to phase-free terms, so an uncertain phase no longer pulls it to a still pose."""
+    m = _spans(mask.to(pred.dtype), span)  # (B, K, span)
+    counts = m.sum(2)
+    weight = m[..., None, None]
+    pred_mean = (_spans(pred, span) * weight).sum(2) / counts.clamp(min=1.0)[..., None, None]
+    target_mean = (_spans(target, span) * weight).sum(2) / counts.clamp(min=1.0)[..., None, None]
+    per_span = (pred_mean - target_mean).square().flatten(2).mean(2)
+    return (per_span * counts).sum() / counts.sum().clamp(min=1.0)
+
+
 def _real_pairs(mask: Tensor) -> Tensor:
     """(B, T - 1) 1 where a frame and the next are both real, else 0."""
     return (mask[:, 1:].bool() & mask[:, :-1].bool()).float()
@@ -336,7 +349,7 @@ def odmo_losses(
     }
     twist_on = free_joints is not None and hips is not None and shoulders is not None
     if free_joints is not None:
-        terms["free"] = masked_mse(free_joints, joints, mask)
+        terms["free"] = span_mean_mse(free_joints, joints, mask, config.free_span)
         log = config.speed_error == "log"
         terms["speed"] = speed_loss(free_joints, joints, mask, config.fps, root, log, config.speed_span)
         terms["spectrum"] = spectrum_loss(free_joints, joints, mask, root, spectrum_on, config.spectrum_span)

@@ -28,6 +28,7 @@ from engine.model.losses import (
     own_contacts,
     prior_loss,
     skate_loss,
+    span_mean_mse,
     spectrum_joints,
     spectrum_loss,
     speed_loss,
@@ -448,6 +449,30 @@ def test_spectrum_spans_see_a_wave_that_stops() -> None:
     longer = _swinging(2.0, 0.1, frames=61), _swinging(2.0, 0.3, frames=61)
     longer[1][:, 20:, 1] = longer[1][:, 20:, 0] + torch.tensor([0.0, 1.0, 0.0], dtype=torch.float64)
     torch.testing.assert_close(spectrum_loss(longer[1], longer[0], one_more, 0, span=20), loss)
+
+
+def test_free_spans_compare_mean_poses_and_leave_the_swing_to_the_phase_free_terms() -> None:
+    """Per 10-frame run (one cycle of a 2 Hz swing at 20 fps) a swing and the still pose at its mean cost
+    nothing, the same swing 0.2 m higher costs 0.2² on one of 2 joints × 3 axes; span 1 is the per-frame
+    error; padded frames are left out of both the means and the weights."""
+    mask = torch.ones(1, 60, dtype=torch.bool)
+    swing = _swinging(2.0, 0.1)
+    still = _swinging(2.0, 0.0)
+    assert float(span_mean_mse(still, swing, mask, 10)) < 1e-20
+    assert float(span_mean_mse(still, swing, mask, 1)) == pytest.approx(float(masked_mse(still, swing, mask)))
+    assert float(masked_mse(still, swing, mask)) == pytest.approx(0.1**2 / 2 / 6, rel=1e-9)
+    higher = swing.clone()
+    higher[:, :, 1, 1] += 0.2
+    assert float(span_mean_mse(higher, swing, mask, 10)) == pytest.approx(0.04 / 6, rel=1e-9)
+    padded = mask.clone()
+    padded[0, 45:] = False
+    moved = higher.clone()
+    moved[:, 45:] += 5.0
+    assert float(span_mean_mse(moved, swing, padded, 10)) == pytest.approx(0.04 / 6, rel=1e-9)
+    cfg = OdmoConfig(n_actions=2, n_joints=2, free_span=10)
+    assert cfg.to_dict()["free_span"] == 10
+    with pytest.raises(ConfigError, match="free_span"):
+        OdmoConfig(n_actions=2, n_joints=2, free_span=0)
 
 
 def test_skate_loss_is_the_squared_speed_of_planted_feet() -> None:
