@@ -2,8 +2,8 @@
 
     python bench/train_default.py --data "$(../shared/data/unpack)" [--resume]
 
-The defaults are the bundled model's settings (60 epochs, teacher forcing decaying from 1 towards 0.3
-over 100 epochs, no same-action pull, the loss weights of ``BUNDLED_WEIGHTS``, log speed errors, the
+The defaults are the bundled model's settings (100 epochs, teacher forcing decaying from 1 towards 0.3
+over those 100 epochs, no same-action pull, the loss weights of ``BUNDLED_WEIGHTS``, log speed errors, the
 free-running skate term on the decode's own contacts, seed 0, one torch thread: training results differ
 between thread counts). The evaluation classifier in --work/classifier is
 reused when present.
@@ -57,7 +57,7 @@ def parse_args() -> argparse.Namespace:
     p.add_argument("--data", required=True, type=Path)
     p.add_argument("--out", type=Path, default=DEFAULT_OUT)
     p.add_argument("--work", type=Path, default=Path("runs/bandai2-odmo"), help="checkpoints and logs")
-    p.add_argument("--epochs", type=int, default=60)
+    p.add_argument("--epochs", type=int, default=100)
     p.add_argument(
         "--tf-decay-epochs", type=int, default=100, help="epochs until teacher forcing reaches its floor"
     )
