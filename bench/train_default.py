@@ -172,6 +172,8 @@ def main() -> int:
             progress=show,
         )
         bar.close()
+        # train() can leave torch on more threads than asked (2 after --threads 1): evaluate on those.
+        torch.set_num_threads(args.threads)
         train_seconds = result.train_seconds
         (work / "train_summary.json").write_text(
             json.dumps(
@@ -181,7 +183,7 @@ def main() -> int:
                     "n_train": result.n_train,
                     "n_val": result.n_val,
                     "device": str(args.device),
-                    "torch_threads": torch.get_num_threads(),
+                    "torch_threads": args.threads,
                 },
                 indent=2,
             )
@@ -230,7 +232,7 @@ def main() -> int:
             "train_seconds": summary["train_seconds"],
             "windows_per_s": summary["windows_per_s"],
             "device": f"{args.device} ({platform.processor() or platform.machine()}, "
-            f"{torch.get_num_threads()} torch threads)",
+            f"{summary['torch_threads']} torch threads)",
             "n_train": summary["n_train"],
             "n_val": summary["n_val"],
             "n_heldout": len(test_clips),
