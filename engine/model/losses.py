@@ -75,6 +75,8 @@ def span_mean_mse(pred: Tensor, target: Tensor, mask: Tensor, span: int) -> Tens
     """Squared error of the mean positions of ``pred`` against ``target`` (B, T, J, 3) over the real
     frames of each run of ``span`` frames, weighted by its real frames (1: ``masked_mse``): the motion
     within a run is left to phase-free terms, so an uncertain phase no longer pulls it to a still pose."""
+    if span <= 1:
+        return masked_mse(pred, target, mask)
     m = _spans(mask.to(pred.dtype), span)  # (B, K, span)
     counts = m.sum(2)
     weight = m[..., None, None]
