@@ -77,13 +77,10 @@ def span_mean_mse(pred: Tensor, target: Tensor, mask: Tensor, span: int) -> Tens
     within a run is left to phase-free terms, so an uncertain phase no longer pulls it to a still pose."""
     if span <= 1:
         return masked_mse(pred, target, mask)
-    m = _spans(mask.to(pred.dtype), span)  # (B, K, span)
-    counts = m.sum(2)
-    weight = m[..., None, None]
-    pred_mean = (_spans(pred, span) * weight).sum(2) / counts.clamp(min=1.0)[..., None, None]
-    target_mean = (_spans(target, span) * weight).sum(2) / counts.clamp(min=1.0)[..., None, None]
-    per_span = (pred_mean - target_mean).square().flatten(2).mean(2)
-    return (per_span * counts).sum() / counts.sum().clamp(min=1.0)
+    real = mask.to(pred.dtype)[:, :, None, None]
+    counts = _span_sums(real, span)  # (B, K, 1, 1)
+    error = (_span_sums(pred * real, span) - _span_sums(target * real, span)) / counts.clamp(min=1.0)
+    return (error.square().flatten(2).mean(2) * counts[:, :, 0, 0]).sum() / counts.sum().clamp(min=1.0)
 
 
 def _real_pairs(mask: Tensor) -> Tensor:
