@@ -116,6 +116,7 @@ COLUMNS = (
     ("Jerk (m/s³) →", "jerk_m_s3", 0),
     ("Heading (°) →", "heading_error_deg", 1),
     ("Torso twist (°) →", "torso_twist_deg", 1),
+    ("Foot sync (r) →", "foot_sync", 2),
 )
 # The unconditional table (MoDi): (header, metric key, decimals).
 UNCONDITIONAL_COLUMNS = (

@@ -36,6 +36,7 @@ METRICS = (
     ("jerk_m_s3", "Mean jerk (m/s³)"),
     ("heading_error_deg", "Heading: body's facing line against its direction of travel (degrees)"),
     ("torso_twist_deg", "Torso twist: shoulders' axis against the hips' (degrees, mean absolute)"),
+    ("foot_sync", "Foot sync: correlation of the two ankles' velocities (−: alternating, +1: a hop)"),
 )
 SKATE_FLOOR = 0.02  # m/s: the planted-foot target for actions that stand still
 

@@ -349,6 +349,10 @@ def model_switches(config: OdmoConfig) -> str:
         parts.append(f"`w_heading = {config.w_heading:g}` (a loss on that decode's heading against its path)")
     if config.w_twist > 0:
         parts.append(f"`w_twist = {config.w_twist:g}` (a loss on that decode's torso twist)")
+    if config.w_coordination > 0:
+        parts.append(
+            f"`w_coordination = {config.w_coordination:g}` (a loss on how that decode's joints move together)"
+        )
     if config.contrastive_pull != 1.0:
         parts.append(
             f"`contrastive_pull = {config.contrastive_pull:g}` (the same-action pull of the contrastive term)"

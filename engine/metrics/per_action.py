@@ -30,6 +30,7 @@ PER_ACTION_COLUMNS = (
     PerActionColumn("jerk_m_s3", "jerk", "jerk (m/s³)", "{:.0f}"),
     PerActionColumn("heading_error_deg", "heading", "heading (°)", "{:.1f}"),
     PerActionColumn("torso_twist_deg", "twist", "twist (°)", "{:.1f}"),
+    PerActionColumn("foot_sync", "foot sync", "foot sync (r)", "{:+.2f}"),
 )
 
 

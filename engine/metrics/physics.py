@@ -15,6 +15,12 @@ root moves at ``MOVING_SPEED`` (0.5 m/s) or more count.
 Late hand speed: the mean hand speed over the last third of each clip (``LATE_SHARE``), beside the mean
 over the whole clip: a decode that meets the mean with a burst and then stops shows there.
 
+Foot sync (``foot_sync``): the correlation over a clip's frame steps of the two ankles' horizontal
+velocities relative to the pelvis (the hips' parent; Pearson's r over both horizontal axes): a gait
+alternates its feet (real Bandai walks −0.4 to −0.65, runs −0.6 to −0.9; double support pulls walks
+towards 0), +1 is both feet moving together, a hop. Clips where an ankle does not move relative to the
+pelvis are left out.
+
 Torso twist (``torso_twist``): the angle, seen from above, between the axis through the tops of the two
 arms (the shoulders) and the axis through the two hips, in every frame (real Bandai walks: 6.8° mean
 absolute, one clip per style, from 2.2° elderly to 13.7° active; waves about 1°).
@@ -26,7 +32,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from engine.motion.contact import foot_joints, hand_joints, hip_pair, shoulder_pair
+from engine.motion.contact import ankle_pair, foot_joints, hand_joints, hip_pair, shoulder_pair
 from engine.motion.skeleton import Skeleton
 
 PLANTED_TOL = 0.03
@@ -137,6 +143,26 @@ def heading_error(clips: Sequence[np.ndarray], hips: tuple[int, int], root: int,
     return float(angles.mean()) if angles.size else 0.0
 
 
+def foot_syncs(clips: Sequence[np.ndarray], ankles: tuple[int, int], pelvis: int) -> np.ndarray:
+    """Per clip, the correlation of the two ``ankles``' horizontal velocities relative to ``pelvis`` (NaN
+    where either does not move)."""
+    out = []
+    for clip in clips:
+        pos = np.asarray(clip, dtype=np.float64)
+        local = pos[:, list(ankles)][..., ::2] - pos[:, pelvis : pelvis + 1, ::2]
+        vel = np.diff(local, axis=0)  # (T-1, 2, 2)
+        left, right = vel[:, 0].ravel(), vel[:, 1].ravel()
+        moving = len(left) > 1 and left.std() > 1e-9 and right.std() > 1e-9
+        out.append(float(np.corrcoef(left, right)[0, 1]) if moving else np.nan)
+    return np.array(out)
+
+
+def foot_sync(clips: Sequence[np.ndarray], ankles: tuple[int, int], pelvis: int) -> float:
+    """Mean ``foot_syncs`` over the clips whose ankles move (NaN when none does)."""
+    r = foot_syncs(clips, ankles, pelvis)
+    return float(np.nanmean(r)) if np.isfinite(r).any() else float("nan")
+
+
 def torso_twists(joints: np.ndarray, hips: tuple[int, int], shoulders: tuple[int, int]) -> np.ndarray:
     """Per frame of one clip, the signed angle (degrees, −180..180) from the hips' axis to the shoulders'
     axis about +y (left − right joint of each pair, horizontal parts)."""
@@ -156,7 +182,7 @@ def physics_metrics(clips: Sequence[np.ndarray], skeleton: Skeleton, fps: float)
     """Every plausibility figure of a set of clips (feet and hands found by name, the heading from two leg
     chains, the torso twist from them and two arms; each left out without)."""
     feet, hands, root = foot_joints(skeleton), hand_joints(skeleton), skeleton.root
-    hips, shoulders = hip_pair(skeleton), shoulder_pair(skeleton)
+    hips, shoulders, ankles = hip_pair(skeleton), shoulder_pair(skeleton), ankle_pair(skeleton)
     out = {"bone_length_cv": median_bone_length_cv(clips, skeleton.parents)}
     if feet:
         out["foot_skate_m_s"] = foot_skate(clips, feet, fps)
@@ -175,4 +201,6 @@ def physics_metrics(clips: Sequence[np.ndarray], skeleton: Skeleton, fps: float)
         out["heading_error_deg"] = heading_error(clips, hips, int(skeleton.parents[hips[0]]), fps)
     if hips is not None and shoulders is not None:
         out["torso_twist_deg"] = torso_twist(clips, hips, shoulders)
+    if ankles is not None and hips is not None:
+        out["foot_sync"] = foot_sync(clips, ankles, int(skeleton.parents[hips[0]]))
     return out

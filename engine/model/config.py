@@ -29,6 +29,7 @@ _BEFORE_SWITCHES = {
     "w_foot_height": 0.0,
     "w_heading": 0.0,
     "w_twist": 0.0,
+    "w_coordination": 0.0,
 }
 SCHEDULED_SAMPLING = ("one_step", "free_run")
 #: The paper's model in one setting, ``OdmoConfig(n_actions, n_joints, **PAPER)``: every project change off.
@@ -78,7 +79,8 @@ class OdmoConfig(ModelConfig):
     decode's sorted foot heights (how long each foot spends at each height, phase-free), ``w_heading``
     the squared error of the cosine between its hips' axis and its direction of travel (a body that
     does not face its path), ``w_twist`` the squared error of its torso twist per frame (the shoulders'
-    axis turned against the hips').
+    axis turned against the hips'), ``w_coordination`` the relative squared error of the mean outer
+    product of its joints' velocities (how each joint moves with every other: feet that alternate).
     ``spectrum_legs`` False leaves the legs out of the spectrum term.
     ``scheduled_sampling`` says where the non-teacher-forced previous poses come from: "one_step" (a
     teacher-forced pass, the default) or "free_run" (a free-running decode, as the reference's per-step
@@ -137,6 +139,7 @@ class OdmoConfig(ModelConfig):
     w_foot_height: float = 0.0
     w_heading: float = 0.0
     w_twist: float = 0.0
+    w_coordination: float = 0.0
     arch: str = "odmo"
 
     POSITIVE = ("n_actions", "n_joints", "window", "fps", "latent_dim", "enc_hidden", "enc_fc", "traj_hidden")
@@ -144,7 +147,7 @@ class OdmoConfig(ModelConfig):
     NON_NEGATIVE = ("w_recon", "w_traj", "w_consistency", "w_contrastive", "w_prior", "traj_y_weight")
     NON_NEGATIVE += ("w_raw", "w_contact", "w_velocity", "contrastive_pull", "epochs", "tf_decay_epochs")
     NON_NEGATIVE += ("w_skate", "w_free", "w_speed", "w_spectrum", "w_free_skate", "w_foot_height")
-    NON_NEGATIVE += ("w_heading", "w_twist", "speed_span", "spectrum_span")
+    NON_NEGATIVE += ("w_heading", "w_twist", "w_coordination", "speed_span", "spectrum_span")
     RATES = ("tf_start", "tf_end")
     CHOICES: ClassVar[dict[str, tuple[str, ...]]] = {
         "train_precision": TRAIN_PRECISIONS,

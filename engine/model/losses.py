@@ -30,6 +30,7 @@ LOSS_TERMS = (
     "foot_height",
     "heading",
     "twist",
+    "coordination",
 )
 
 
@@ -122,6 +123,7 @@ def speed_loss(
 
 #: Amplitude (m) added to both sides of the log-spectrum error, so that bins without motion weigh little.
 SPECTRUM_FLOOR = 0.002
+COORDINATION_FLOOR = 1e-3  # (m²/s²)²: a still window's Gram is near zero
 
 
 def amplitude_spectra(joints: Tensor, mask: Tensor, root: int) -> Tensor:
@@ -184,6 +186,26 @@ def spectrum_loss(
     real_log = torch.log(amplitude_spectra(target, mask, root)[:, pick] + SPECTRUM_FLOOR)
     real = mask.sum(1) >= 2
     return (pred_log - real_log).square()[real].mean()
+
+
+def velocity_gram(joints: Tensor, mask: Tensor, root: int, fps: float) -> Tensor:
+    """(B, 3J, 3J) mean outer product over the real frame steps of each window's joint velocities
+    relative to the root (m²/s²): how every joint's movement goes with every other's, whatever the phase."""
+    local = joints - joints[:, :, root : root + 1]
+    steps = (mask[:, 1:].bool() & mask[:, :-1].bool()).to(joints.dtype)
+    vel = (local.diff(dim=1) * fps).flatten(2) * steps.unsqueeze(-1)
+    return torch.einsum("btk,btl->bkl", vel, vel) / steps.sum(1).clamp(min=1.0)[:, None, None]
+
+
+def coordination_loss(pred: Tensor, target: Tensor, mask: Tensor, root: int, fps: float) -> Tensor:
+    """Squared error of ``velocity_gram`` of ``pred`` against ``target`` (B, T, J, 3), relative to both
+    (their squared norms plus COORDINATION_FLOOR, so 0..2 per window, however still either is): feet
+    that should alternate but step together differ in sign there, which per-joint speeds and spectra
+    cannot see."""
+    pred_g, real_g = velocity_gram(pred, mask, root, fps), velocity_gram(target, mask, root, fps)
+    error = (pred_g - real_g).square().sum(dim=(1, 2))
+    scale = pred_g.square().sum(dim=(1, 2)) + real_g.square().sum(dim=(1, 2)) + COORDINATION_FLOOR
+    return (error / scale).mean()
 
 
 def contact_loss(logits: Tensor, labels: Tensor, mask: Tensor) -> Tensor:
@@ -345,6 +367,7 @@ def odmo_losses(
         "foot_height": zero,
         "heading": zero,
         "twist": zero,
+        "coordination": zero,
     }
     twist_on = free_joints is not None and hips is not None and shoulders is not None
     if free_joints is not None:
@@ -356,6 +379,7 @@ def odmo_losses(
             terms["heading"] = heading_loss(free_joints, joints, mask, hips, config.fps)
         if twist_on:
             terms["twist"] = twist_loss(free_joints, joints, mask, hips, shoulders)
+        terms["coordination"] = coordination_loss(free_joints, joints, mask, root, config.fps)
     if contact_logits is not None and contacts is not None:
         feet = list(config.foot_joints)
         terms["contact"] = contact_loss(contact_logits, contacts, mask)
@@ -384,6 +408,7 @@ def odmo_losses(
         "foot_height": config.w_foot_height if free_feet_on else 0.0,
         "heading": config.w_heading if free_joints is not None and hips is not None else 0.0,
         "twist": config.w_twist if twist_on else 0.0,
+        "coordination": config.w_coordination if free_joints is not None else 0.0,
     }
     terms["total"] = sum(weights[k] * terms[k] for k in LOSS_TERMS if weights[k] > 0)
     return terms

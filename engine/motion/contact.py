@@ -57,6 +57,12 @@ def hip_pair(skeleton: Skeleton) -> tuple[int, int] | None:
     return (legs[0][0], legs[1][0]) if len(legs) == 2 else None
 
 
+def ankle_pair(skeleton: Skeleton) -> tuple[int, int] | None:
+    """The two ankles, the top foot joints of the two ``leg_chains`` (None unless the rig has two legs)."""
+    legs = leg_chains(skeleton)
+    return (legs[0][2], legs[1][2]) if len(legs) == 2 else None
+
+
 def shoulder_pair(skeleton: Skeleton) -> tuple[int, int] | None:
     """The tops of the two arms (from each hand up to the joint below the first that branches, the
     chest), the first on the side of ``hip_pair``'s first in the rest pose; None without two hands and

@@ -103,7 +103,16 @@ def _forward(
     tf_noise = None if noise is None else noise.tf
     out = model.decode_full(z, data.actions, end, prev_truth=truth, tf_rate=tf_rate, tf_noise=tf_noise)
     free = None
-    free_terms = ("w_free", "w_speed", "w_spectrum", "w_free_skate", "w_foot_height", "w_heading", "w_twist")
+    free_terms = (
+        "w_free",
+        "w_speed",
+        "w_spectrum",
+        "w_free_skate",
+        "w_foot_height",
+        "w_heading",
+        "w_twist",
+        "w_coordination",
+    )
     if any(getattr(config, name) > 0 for name in free_terms):
         free = out.joints if truth is None else model.decode_full(z, data.actions, end).joints
     return odmo_losses(

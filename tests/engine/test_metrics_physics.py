@@ -8,6 +8,7 @@ from scipy.spatial.transform import Rotation
 
 from engine.metrics import physics
 from engine.motion.contact import (
+    ankle_pair,
     contact_labels,
     foot_joints,
     hand_joints,
@@ -233,6 +234,7 @@ def test_shoulders_are_the_tops_of_the_arms_on_the_hips_sides() -> None:
     offsets[[10, 11, 13, 14]] = [0, -0.45, 0]
     skel = Skeleton(names, parents, offsets)
     assert hip_pair(skel) == (9, 12)
+    assert ankle_pair(skel) == (11, 14)
     assert shoulder_pair(skel) == (7, 4)  # the left arm's top first, as the left hip
     one_arm = Skeleton(names[:7] + names[9:], np.array([-1, 0, 1, 2, 2, 4, 5, 0, 7, 8, 0, 10, 11]),
                        np.delete(offsets, [7, 8], axis=0))  # fmt: skip
@@ -263,6 +265,44 @@ def test_real_walks_keep_the_shoulders_over_the_hips_and_a_twisted_chest_does_no
         pos[:, above] = turn.apply(local.reshape(-1, 3)).reshape(local.shape) + pos[:, chest : chest + 1]
         twisted.append(pos)
     assert physics.torso_twist(twisted, hips, shoulders) > real + 15.0  # measured 29.1
+
+
+def _feet_swinging(alternate: bool, frames: int = 61) -> np.ndarray:
+    """(frames, 3, 3): a root walking along x at 1 m/s, two ankles either side swinging 0.2 m fore and aft
+    at 1 Hz (20 fps), in turn or together."""
+    t = np.arange(frames) / FPS
+    clip = np.zeros((frames, 3, 3))
+    clip[:, :, 0] = t[:, None]
+    clip[:, 1, 2], clip[:, 2, 2] = 0.1, -0.1
+    swing = 0.2 * np.sin(2 * np.pi * t)
+    clip[:, 1, 0] += swing
+    clip[:, 2, 0] += -swing if alternate else swing
+    return clip
+
+
+def test_foot_sync_is_minus_one_for_alternating_feet_and_one_for_a_hop() -> None:
+    walk, hop = _feet_swinging(True), _feet_swinging(False)
+    still = _feet_swinging(True)
+    still[:, 1:] = still[:, 0:1] + [[0.0, 0.0, 0.1], [0.0, 0.0, -0.1]]  # carried along with the root
+    np.testing.assert_allclose(physics.foot_syncs([walk, hop], (1, 2), 0), [-1.0, 1.0], atol=1e-12)
+    assert np.isnan(physics.foot_syncs([still], (1, 2), 0)).all()
+    assert physics.foot_sync([walk, still, hop, hop], (1, 2), 0) == pytest.approx(1 / 3)  # still left out
+    assert np.isnan(physics.foot_sync([still], (1, 2), 0))
+
+
+def test_real_gaits_alternate_their_feet(bandai_dir) -> None:
+    paths = sorted((bandai_dir / "data").glob("dataset-2_walk_*_00[12].bvh"))
+    paths += sorted((bandai_dir / "data").glob("dataset-2_run_*_00[12].bvh"))
+    clips = [read_motion(p) for p in paths]
+    skel = clips[0].skeleton
+    ankles = ankle_pair(skel)
+    assert [skel.names[j] for j in ankles] == ["Foot_L", "Foot_R"]
+    pelvis = int(skel.parents[hip_pair(skel)[0]])
+    assert skel.names[pelvis] == "Hips" and skel.root != pelvis  # the rig's root stays at the origin
+    syncs = physics.foot_syncs([c.joints for c in clips], ankles, pelvis)
+    assert len(clips) == 28 and (syncs < 0).all()
+    row = physics.physics_metrics([c.joints for c in clips], skel, clips[0].fps)
+    assert row["foot_sync"] == pytest.approx(np.mean(syncs))
 
 
 def _below(parents: np.ndarray, j: int, ancestor: int) -> bool:

@@ -15,11 +15,13 @@ from engine.model.a2m import A2mConfig
 from engine.model.config import OdmoConfig
 from engine.model.dvgan import DvganConfig
 from engine.model.losses import (
+    COORDINATION_FLOOR,
     LOG_SPEED_FLOOR,
     SPECTRUM_FLOOR,
     LossJoints,
     amplitude_spectra,
     contrastive_loss,
+    coordination_loss,
     foot_height_loss,
     heading_loss,
     masked_mse,
@@ -33,6 +35,7 @@ from engine.model.losses import (
     spectrum_loss,
     speed_loss,
     twist_loss,
+    velocity_gram,
 )
 from engine.model.odmo import OdmoModel
 from engine.model.precision import bfloat16_autocast
@@ -677,6 +680,42 @@ def test_the_twist_term_enters_the_total_with_its_weight_and_needs_shoulders() -
     torch.testing.assert_close(terms["twist"], torch.tensor(1.0))  # 2 − 2 cos 60°
     torch.testing.assert_close(terms["total"], terms["velocity"] * cfg.w_velocity + 2.0 * terms["twist"])
     assert float(odmo_losses(cfg, hips=(1, 2), **kw)["twist"]) == 0.0  # no shoulders: no twist term
+
+
+def _stepping(alternate: bool, frames: int = 61, skip: int = 0) -> torch.Tensor:
+    """(1, frames, 3, 3): a root walking along x at 1 m/s and two feet either side of it swinging 0.2 m
+    fore and aft at 1 Hz (20 fps), in turn or together; ``skip`` frames cut from the start."""
+    t = torch.arange(frames + skip, dtype=torch.float64)[skip:] / 20.0
+    root = torch.stack([t, torch.zeros_like(t), torch.zeros_like(t)], dim=1)
+    swing = 0.2 * torch.sin(2 * math.pi * t)
+    zero = torch.zeros_like(t)
+    left, right = (root + torch.stack([swing, zero, torch.full_like(t, z)], dim=1) for z in (0.1, -0.1))
+    if alternate:
+        right = right - torch.stack([2 * swing, zero, zero], dim=1)
+    return torch.stack([root, left, right], dim=1)[None]
+
+
+def test_coordination_loss_sees_feet_that_step_together_and_not_the_phase() -> None:
+    """Alternating feet against feet moving together: in the root's frame each foot's fore-aft velocity
+    has mean square a = (2·0.2·sin(π/20)·20)²/2 over the 60 steps (whole cycles), the two feet's cross
+    terms are −a and +a, so the error is 2·(2a)² against norms 2a² each; a shift in time costs nothing."""
+    mask = torch.ones(1, 61, dtype=torch.bool)
+    walk, hop = _stepping(True), _stepping(False)
+    a = (2 * 0.2 * math.sin(math.pi / 20) * 20) ** 2 / 2
+    gram = velocity_gram(walk, mask, root=0, fps=20.0)[0]
+    assert float(gram[3, 3]) == pytest.approx(a, rel=1e-9)  # left foot's x with itself
+    assert float(gram[3, 6]) == pytest.approx(-a, rel=1e-9)  # left x with right x: opposite
+    assert float(gram[3:, 3:].abs().sum() - 4 * a) < 1e-9  # no sideways or vertical movement
+    expected = 8 * a**2 / (4 * a**2 + 4 * a**2 + COORDINATION_FLOOR)
+    assert float(coordination_loss(hop, walk, mask, 0, 20.0)) == pytest.approx(expected, rel=1e-9)
+    assert float(coordination_loss(_stepping(True, skip=7), walk, mask, 0, 20.0)) < 1e-12
+    assert float(coordination_loss(walk, walk, mask, 0, 20.0)) == 0.0
+    cfg = OdmoConfig(n_actions=2, n_joints=3, w_coordination=2.0, w_contrastive=0.0, w_prior=0.0, w_free=0.0)
+    terms = odmo_losses(cfg, **_pair_kwargs(walk, hop))
+    torch.testing.assert_close(terms["coordination"], torch.tensor(expected, dtype=torch.float64))
+    torch.testing.assert_close(
+        terms["total"], terms["velocity"] * cfg.w_velocity + 2.0 * terms["coordination"], check_dtype=False
+    )
 
 
 def test_contrastive_known_values() -> None:
