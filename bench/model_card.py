@@ -39,6 +39,7 @@ METRICS = (
     ("foot_sync", "Foot sync: correlation of the two ankles' velocities (−: alternating, +1: a hop)"),
 )
 SKATE_FLOOR = 0.02  # m/s: the planted-foot target for actions that stand still
+SYNC_TOL = 0.3  # foot sync (a correlation) a gait may differ from real's: walks −0.4 to −0.65, a hop +1
 
 
 REPO = Path(__file__).resolve().parents[1]
@@ -108,6 +109,9 @@ def physics_targets(report: dict[str, Any]) -> list[str]:
         ),
         "mean hand speed ≥ 0.8× real": lambda g, r: (
             mean(g, "hand_speed_m_s") >= 0.8 * mean(r, "hand_speed_m_s")
+        ),
+        "feet alternating as real ones (foot sync within 0.3 of real; this project's)": lambda g, r: (
+            abs(mean(g, "foot_sync") - mean(r, "foot_sync")) <= SYNC_TOL
         ),
     }
     lines = []
