@@ -38,7 +38,7 @@ from engine.generate import interpolate
 from engine.metrics.classifier import load_classifier, train_classifier
 from engine.metrics.evaluate import evaluate
 from engine.metrics.smoothness import max_frame_jump
-from engine.model.config import FREE_SKATE_CONTACTS, SPEED_ERRORS, OdmoConfig
+from engine.model.config import COORDINATION_ON, FREE_SKATE_CONTACTS, SPEED_ERRORS, OdmoConfig
 from engine.modelio import load_model
 from engine.motion.datasets import load_folder
 from engine.motion.resample import resample_motion
@@ -98,6 +98,12 @@ def parse_args() -> argparse.Namespace:
         help="where the w_free_skate term holds the feet: where the data's are planted or the decode's own",
     )
     p.add_argument(
+        "--coordination-on",
+        choices=COORDINATION_ON,
+        default="all",
+        help="the joints the w_coordination term compares: all, or the legs only",
+    )
+    p.add_argument(
         "--weight",
         action="append",
         default=list(BUNDLED_WEIGHTS),
@@ -146,6 +152,7 @@ def main() -> int:
         spectrum_span=args.spectrum_span,
         spectrum_legs=not args.spectrum_no_legs,
         free_skate_contacts=args.free_skate_contacts,
+        coordination_on=args.coordination_on,
         **weights,
     )
     work = args.work
@@ -350,8 +357,10 @@ def model_switches(config: OdmoConfig) -> str:
     if config.w_twist > 0:
         parts.append(f"`w_twist = {config.w_twist:g}` (a loss on that decode's torso twist)")
     if config.w_coordination > 0:
+        which = "legs" if config.coordination_on == "legs" else "joints"
         parts.append(
-            f"`w_coordination = {config.w_coordination:g}` (a loss on how that decode's joints move together)"
+            f"`w_coordination = {config.w_coordination:g}` "
+            f"(a loss on how that decode's {which} move together)"
         )
     if config.contrastive_pull != 1.0:
         parts.append(

@@ -30,6 +30,7 @@ _BEFORE_SWITCHES = {
     "w_heading": 0.0,
     "w_twist": 0.0,
     "w_coordination": 0.0,
+    "coordination_on": "all",
 }
 SCHEDULED_SAMPLING = ("one_step", "free_run")
 #: The paper's model in one setting, ``OdmoConfig(n_actions, n_joints, **PAPER)``: every project change off.
@@ -37,6 +38,7 @@ PAPER: dict[str, Any] = {"contrastive_pull": 1.0, **_BEFORE_SWITCHES}
 TRAIN_PRECISIONS = ("float32", "bfloat16")
 SPEED_ERRORS = ("absolute", "log")
 FREE_SKATE_CONTACTS = ("data", "own")
+COORDINATION_ON = ("all", "legs")
 
 
 @dataclass
@@ -80,7 +82,8 @@ class OdmoConfig(ModelConfig):
     the squared error of the cosine between its hips' axis and its direction of travel (a body that
     does not face its path), ``w_twist`` the squared error of its torso twist per frame (the shoulders'
     axis turned against the hips'), ``w_coordination`` the relative squared error of the mean outer
-    product of its joints' velocities (how each joint moves with every other: feet that alternate).
+    product of its joints' velocities (how each joint moves with every other: feet that alternate), of
+    every joint or with ``coordination_on`` "legs" only the chains from the root to the foot joints.
     ``spectrum_legs`` False leaves the legs out of the spectrum term.
     ``scheduled_sampling`` says where the non-teacher-forced previous poses come from: "one_step" (a
     teacher-forced pass, the default) or "free_run" (a free-running decode, as the reference's per-step
@@ -140,6 +143,7 @@ class OdmoConfig(ModelConfig):
     w_heading: float = 0.0
     w_twist: float = 0.0
     w_coordination: float = 0.0
+    coordination_on: str = "all"
     arch: str = "odmo"
 
     POSITIVE = ("n_actions", "n_joints", "window", "fps", "latent_dim", "enc_hidden", "enc_fc", "traj_hidden")
@@ -153,6 +157,7 @@ class OdmoConfig(ModelConfig):
         "train_precision": TRAIN_PRECISIONS,
         "speed_error": SPEED_ERRORS,
         "free_skate_contacts": FREE_SKATE_CONTACTS,
+        "coordination_on": COORDINATION_ON,
         "scheduled_sampling": SCHEDULED_SAMPLING,
     }
     ARCH = "odmo"

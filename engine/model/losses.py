@@ -136,34 +136,48 @@ def amplitude_spectra(joints: Tensor, mask: Tensor, root: int) -> Tensor:
     return (spectra.clamp(min=1e-12).sqrt() / m.sum(1).clamp(min=1.0)).transpose(1, 2)
 
 
+def leg_joints(config: OdmoConfig, parents: Sequence[int], root: int) -> set[int]:
+    """The chains from the root (not included) to the config's foot joints."""
+    legs = set()
+    for j in config.foot_joints:
+        while j != root and j >= 0:
+            legs.add(j)
+            j = parents[j]
+    return legs
+
+
 def spectrum_joints(config: OdmoConfig, parents: Sequence[int], root: int) -> list[int]:
-    """Joints the spectrum term sees: all, or with ``spectrum_legs`` off all but the chains from the root
-    to the config's foot joints (a per-joint spectrum leaves a foot's lift out of phase with its step)."""
-    joints = set(range(len(parents)))
-    if not config.spectrum_legs:
-        for j in config.foot_joints:
-            while j != root and j >= 0:
-                joints.discard(j)
-                j = parents[j]
-    return sorted(joints)
+    """Joints the spectrum term sees: all, or with ``spectrum_legs`` off all but ``leg_joints`` (a
+    per-joint spectrum leaves a foot's lift out of phase with its step)."""
+    every = set(range(len(parents)))
+    return sorted(every if config.spectrum_legs else every - leg_joints(config, parents, root))
+
+
+def coordination_joints(config: OdmoConfig, parents: Sequence[int], root: int) -> list[int]:
+    """Joints the coordination term sees: all, or with ``coordination_on`` "legs" only ``leg_joints``."""
+    if config.coordination_on == "legs":
+        return sorted(leg_joints(config, parents, root))
+    return list(range(len(parents)))
 
 
 @dataclass(frozen=True)
 class LossJoints:
     """Joints the loss terms read, found once from the skeleton: the root, the joints of the spectrum
     term, the two hips of the heading term and the two shoulders of the twist term (None: a rig without
-    two legs, or two arms)."""
+    two legs, or two arms), the joints of the coordination term."""
 
     root: int
     spectrum_on: tuple[int, ...]
     hips: tuple[int, int] | None
     shoulders: tuple[int, int] | None
+    coordination_on: tuple[int, ...]
 
     @classmethod
     def of(cls, config: OdmoConfig, skeleton: Skeleton) -> LossJoints:
         """The joints of ``config``'s terms on ``skeleton``."""
         spectrum_on = tuple(spectrum_joints(config, skeleton.parents, skeleton.root))
-        return cls(skeleton.root, spectrum_on, hip_pair(skeleton), shoulder_pair(skeleton))
+        coordination_on = tuple(coordination_joints(config, skeleton.parents, skeleton.root))
+        return cls(skeleton.root, spectrum_on, hip_pair(skeleton), shoulder_pair(skeleton), coordination_on)
 
 
 def spectrum_loss(
@@ -188,21 +202,28 @@ def spectrum_loss(
     return (pred_log - real_log).square()[real].mean()
 
 
-def velocity_gram(joints: Tensor, mask: Tensor, root: int, fps: float) -> Tensor:
+def velocity_gram(
+    joints: Tensor, mask: Tensor, root: int, fps: float, on: Sequence[int] | None = None
+) -> Tensor:
     """(B, 3J, 3J) mean outer product over the real frame steps of each window's joint velocities
-    relative to the root (m²/s²): how every joint's movement goes with every other's, whatever the phase."""
+    relative to the root (m²/s²), of the joints ``on`` (None: all, J of them): how every joint's movement
+    goes with every other's, whatever the phase."""
     local = joints - joints[:, :, root : root + 1]
+    if on is not None:
+        local = local[:, :, list(on)]
     steps = (mask[:, 1:].bool() & mask[:, :-1].bool()).to(joints.dtype)
     vel = (local.diff(dim=1) * fps).flatten(2) * steps.unsqueeze(-1)
     return torch.einsum("btk,btl->bkl", vel, vel) / steps.sum(1).clamp(min=1.0)[:, None, None]
 
 
-def coordination_loss(pred: Tensor, target: Tensor, mask: Tensor, root: int, fps: float) -> Tensor:
-    """Squared error of ``velocity_gram`` of ``pred`` against ``target`` (B, T, J, 3), relative to both
-    (their squared norms plus COORDINATION_FLOOR, so 0..2 per window, however still either is): feet
-    that should alternate but step together differ in sign there, which per-joint speeds and spectra
-    cannot see."""
-    pred_g, real_g = velocity_gram(pred, mask, root, fps), velocity_gram(target, mask, root, fps)
+def coordination_loss(
+    pred: Tensor, target: Tensor, mask: Tensor, root: int, fps: float, on: Sequence[int] | None = None
+) -> Tensor:
+    """Squared error of ``velocity_gram`` of ``pred`` against ``target`` (B, T, J, 3) over the joints
+    ``on`` (None: all), relative to both (their squared norms plus COORDINATION_FLOOR, so 0..2 per window,
+    however still either is): feet that should alternate but step together differ in sign there, which
+    per-joint speeds and spectra cannot see."""
+    pred_g, real_g = velocity_gram(pred, mask, root, fps, on), velocity_gram(target, mask, root, fps, on)
     error = (pred_g - real_g).square().sum(dim=(1, 2))
     scale = pred_g.square().sum(dim=(1, 2)) + real_g.square().sum(dim=(1, 2)) + COORDINATION_FLOOR
     return (error / scale).mean()
@@ -328,6 +349,7 @@ def odmo_losses(
     spectrum_on: Sequence[int] | None = None,
     hips: tuple[int, int] | None = None,
     shoulders: tuple[int, int] | None = None,
+    coordination_on: Sequence[int] | None = None,
 ) -> dict[str, Tensor]:
     """Every loss term and the weighted ``total``.
 
@@ -346,6 +368,7 @@ def odmo_losses(
     spectrum_on : the joints the spectrum term compares (``spectrum_joints``; None: all).
     hips : the two hips of the heading and twist terms (``hip_pair``; None: neither term).
     shoulders : the two shoulders of the twist term (``shoulder_pair``; None: no twist term).
+    coordination_on : the joints the coordination term compares (``coordination_joints``; None: all).
     """
     axis = torch.tensor([1.0, config.traj_y_weight, 1.0], device=joints.device)
     zero = joints.new_zeros(())
@@ -379,7 +402,9 @@ def odmo_losses(
             terms["heading"] = heading_loss(free_joints, joints, mask, hips, config.fps)
         if twist_on:
             terms["twist"] = twist_loss(free_joints, joints, mask, hips, shoulders)
-        terms["coordination"] = coordination_loss(free_joints, joints, mask, root, config.fps)
+        terms["coordination"] = coordination_loss(
+            free_joints, joints, mask, root, config.fps, coordination_on
+        )
     if contact_logits is not None and contacts is not None:
         feet = list(config.foot_joints)
         terms["contact"] = contact_loss(contact_logits, contacts, mask)

@@ -133,6 +133,7 @@ def _forward(
         spectrum_on=roles.spectrum_on,
         hips=roles.hips,
         shoulders=roles.shoulders,
+        coordination_on=roles.coordination_on,
     )
 
 

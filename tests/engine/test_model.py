@@ -641,9 +641,12 @@ def test_loss_joints_find_the_hips_above_the_feet_and_the_shoulders() -> None:
     offsets += [[0, -0.4, 0]] * 3 + [[-0.1, 0, 0]] + [[0, -0.4, 0]] * 2
     skel = Skeleton(names, parents, offsets)
     cfg = OdmoConfig(n_actions=3, n_joints=13, foot_joints=(8, 9, 12), foot_heights=(0.1, 0.05, 0.1))
-    assert LossJoints.of(cfg, skel) == LossJoints(0, tuple(range(13)), (6, 10), (2, 4))
+    every = tuple(range(13))
+    assert LossJoints.of(cfg, skel) == LossJoints(0, every, (6, 10), (2, 4), every)
     one_leg = Skeleton(names[:10], parents[:10], offsets[:10])
-    assert LossJoints.of(cfg, one_leg) == LossJoints(0, tuple(range(10)), None, None)
+    assert LossJoints.of(cfg, one_leg) == LossJoints(0, tuple(range(10)), None, None, tuple(range(10)))
+    legs = OdmoConfig(**(cfg.to_dict() | {"coordination_on": "legs"}))
+    assert LossJoints.of(legs, skel).coordination_on == (6, 7, 8, 9, 10, 11, 12)
 
 
 def _twisted(deg: float, t: int = 6) -> torch.Tensor:
@@ -710,12 +713,16 @@ def test_coordination_loss_sees_feet_that_step_together_and_not_the_phase() -> N
     assert float(coordination_loss(hop, walk, mask, 0, 20.0)) == pytest.approx(expected, rel=1e-9)
     assert float(coordination_loss(_stepping(True, skip=7), walk, mask, 0, 20.0)) < 1e-12
     assert float(coordination_loss(walk, walk, mask, 0, 20.0)) == 0.0
+    # Only the feet (1, 2): the same Gram without the root's rows, which are zero relative to itself.
+    assert float(coordination_loss(hop, walk, mask, 0, 20.0, on=(1, 2))) == pytest.approx(expected, rel=1e-9)
+    assert float(coordination_loss(hop, walk, mask, 0, 20.0, on=(1,))) == 0.0  # one foot alone: no phase
     cfg = OdmoConfig(n_actions=2, n_joints=3, w_coordination=2.0, w_contrastive=0.0, w_prior=0.0, w_free=0.0)
     terms = odmo_losses(cfg, **_pair_kwargs(walk, hop))
     torch.testing.assert_close(terms["coordination"], torch.tensor(expected, dtype=torch.float64))
     torch.testing.assert_close(
         terms["total"], terms["velocity"] * cfg.w_velocity + 2.0 * terms["coordination"], check_dtype=False
     )
+    assert float(odmo_losses(cfg, **_pair_kwargs(walk, hop), coordination_on=(1,))["coordination"]) == 0.0
 
 
 def test_contrastive_known_values() -> None:
