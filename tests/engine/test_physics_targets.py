@@ -1,0 +1,35 @@
+"""The model card's per-action verdicts on issue 18's targets (bench/model_card.py)."""
+
+from bench.model_card import physics_targets
+
+
+def _side(**figures: float) -> dict[str, dict[str, float]]:
+    return {k: {"mean": v, "ci95": 0.0} for k, v in figures.items()}
+
+
+def _action(sync: tuple[float, float], feet: tuple[float, float], hands: float = 1.0) -> dict:
+    """One action's report: foot sync and foot speed (generated, real), generated hand speed (real 1)."""
+    base = {"bone_length_cv": 0.001, "foot_skate_m_s": 0.1, "floor_penetration": 0.0, "float_share": 0.0}
+    gen = base | {"foot_sync": sync[0], "foot_speed_m_s": feet[0], "hand_speed_m_s": hands}
+    real = base | {"foot_sync": sync[1], "foot_speed_m_s": feet[1], "hand_speed_m_s": 1.0}
+    return {"generated": _side(**gen), "real": _side(**real)}
+
+
+def test_feet_are_judged_on_alternation_only_where_real_feet_step() -> None:
+    report = {
+        "per_action": {
+            # a walk whose feet step together (+0.1) where real ones alternate (−0.6): missed
+            "walk": _action((0.1, -0.6), (1.2, 1.3)),
+            # a run within 0.3 of real: met
+            "run": _action((-0.6, -0.85), (2.7, 3.0)),
+            # standing feet (real 5 mm/s) have no gait: their correlation of sway is not judged
+            "wave": _action((0.6, 0.96), (0.0, 0.005)),
+            # hands at 0.7× real speed: missed on hand speed only
+            "raise": _action((0.9, 0.95), (0.0, 0.004), hands=0.7),
+        }
+    }
+    lines = {line.split(":")[0]: line for line in physics_targets(report)}
+    feet = next(v for k, v in lines.items() if k.startswith("- feet alternating"))
+    assert feet.endswith("3/4 actions — missed (walk).")
+    assert lines["- mean hand speed ≥ 0.8× real"].endswith("3/4 actions — missed (raise).")
+    assert lines["- worst-bone length variation ≤ 1 %"].endswith("4/4 actions — met.")
