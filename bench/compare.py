@@ -302,15 +302,16 @@ def unconditional_markdown(report: dict[str, Any]) -> list[str]:
             "",
             "Predicted action of its samples: " + ", ".join(f"{a} {v:.1%}" for a, v in shares.items()),
         ]
+    lines += [
+        "",
+        "This section alone is rewritten from its `eval.json` by `python bench/compare.py --modi-only`.",
+    ]
     return [*lines, ""]
 
 
 def _write_modi_section(results: Path, report_path: Path) -> int:
     """Replace (or add, before "How it was made") the MoDi section of ``results`` from ``report_path``."""
     section = "\n".join(unconditional_markdown(json.loads(report_path.read_text())))
-    section += (
-        f"Section rewritten from `{shown(report_path, 'MODI')}` by `python bench/compare.py --modi-only`.\n\n"
-    )
     replace_section(results, "## Unconditional: MoDi", section, before="## How it was made")
     print(f"wrote the MoDi section of {results}")
     return 0

@@ -108,3 +108,16 @@ def test_the_results_file_shows_the_bundled_evaluation(tmp_path: Path) -> None:
     assert results.read_text() == shipped
     report = json.loads((BUNDLED / "eval.json").read_text())
     assert f"{report['generated']['fid']['mean']:.3f}" in shipped.split("## Unconditional: MoDi")[1]
+
+
+def test_a_full_results_write_and_the_modi_only_rewrite_agree(tmp_path: Path) -> None:
+    from bench.compare import main as compare
+    from bench.compare import results_markdown
+
+    real = {"accuracy": {"mean": 0.9, "ci95": 0.01}}
+    report = json.loads((BUNDLED / "eval.json").read_text())
+    results = tmp_path / "RESULTS.md"
+    full = results_markdown(real, [], {"Command": "test"}, unconditional=report)
+    results.write_text(full)
+    assert compare(["--modi-only", "--results", str(results), "--modi", str(BUNDLED)]) == 0
+    assert results.read_text() == full
