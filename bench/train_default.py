@@ -104,6 +104,11 @@ def parse_args() -> argparse.Namespace:
         help="the joints the w_coordination term compares: all, or the legs only",
     )
     p.add_argument(
+        "--root-velocity-input",
+        action="store_true",
+        help="feed the pose decoder each frame's root velocity (OdmoConfig.root_velocity_input)",
+    )
+    p.add_argument(
         "--weight",
         action="append",
         default=list(BUNDLED_WEIGHTS),
@@ -153,6 +158,7 @@ def main() -> int:
         spectrum_legs=not args.spectrum_no_legs,
         free_skate_contacts=args.free_skate_contacts,
         coordination_on=args.coordination_on,
+        root_velocity_input=args.root_velocity_input,
         **weights,
     )
     work = args.work
@@ -362,6 +368,8 @@ def model_switches(config: OdmoConfig) -> str:
             f"`w_coordination = {config.w_coordination:g}` "
             f"(a loss on how that decode's {which} move together)"
         )
+    if config.root_velocity_input:
+        parts.append("`root_velocity_input` (the pose decoder reads each frame's root velocity)")
     if config.contrastive_pull != 1.0:
         parts.append(
             f"`contrastive_pull = {config.contrastive_pull:g}` (the same-action pull of the contrastive term)"

@@ -31,6 +31,7 @@ _BEFORE_SWITCHES = {
     "w_twist": 0.0,
     "w_coordination": 0.0,
     "coordination_on": "all",
+    "root_velocity_input": False,
 }
 SCHEDULED_SAMPLING = ("one_step", "free_run")
 #: The paper's model in one setting, ``OdmoConfig(n_actions, n_joints, **PAPER)``: every project change off.
@@ -84,7 +85,10 @@ class OdmoConfig(ModelConfig):
     axis turned against the hips'), ``w_coordination`` the relative squared error of the mean outer
     product of its joints' velocities (how each joint moves with every other: feet that alternate), of
     every joint or with ``coordination_on`` "legs" only the chains from the root to the foot joints.
-    ``spectrum_legs`` False leaves the legs out of the spectrum term.
+    ``spectrum_legs`` False leaves the legs out of the spectrum term. ``root_velocity_input`` feeds the
+    pose decoder each frame's root velocity from the generated trajectory (the paper's decoder sees the
+    trajectory only through its initial state, so it cannot tell how far the root moves at each frame
+    to hold a planted foot against it).
     ``scheduled_sampling`` says where the non-teacher-forced previous poses come from: "one_step" (a
     teacher-forced pass, the default) or "free_run" (a free-running decode, as the reference's per-step
     loop does; measured worse on the bundled recipe, see the README).
@@ -144,6 +148,7 @@ class OdmoConfig(ModelConfig):
     w_twist: float = 0.0
     w_coordination: float = 0.0
     coordination_on: str = "all"
+    root_velocity_input: bool = False
     arch: str = "odmo"
 
     POSITIVE = ("n_actions", "n_joints", "window", "fps", "latent_dim", "enc_hidden", "enc_fc", "traj_hidden")

@@ -90,7 +90,10 @@ class MotionGenerator(nn.Module):
     LSTM (initialised by the trajectory encoder's final state) → FC to the xyz of all J joints. The
     previous pose of frame 0 is zero. With ``relative`` the decoder's pose is read as the local movement
     profile (every joint minus the root, joint 0): that is what it reads back, and the trajectory is
-    the root, so the generated root follows the trajectory exactly.
+    the root, so the generated root follows the trajectory exactly. With ``velocity_input`` each frame's
+    input also holds the trajectory's step into that frame (m/s at ``fps``; zero at frame 0), so the
+    decoder sees how far the root moves while it places the feet, not only the trajectory's summary in
+    its initial state.
     """
 
     def __init__(
@@ -101,15 +104,20 @@ class MotionGenerator(nn.Module):
         window: int,
         relative: bool = False,
         free_running_samples: bool = False,
+        velocity_input: bool = False,
+        fps: float = 20.0,
     ):
         super().__init__()
         self.free_running_samples = free_running_samples
         self.pose_dim = n_joints * 3
+        self.cond_dim = cond_dim
         self.window = window
         self.relative = relative
+        self.velocity_input = velocity_input
+        self.fps = fps
         self.traj_embed = nn.Sequential(nn.Linear(3, hidden), nn.PReLU())
         self.traj_lstm = nn.LSTM(hidden, hidden, num_layers=2, batch_first=True)
-        self.embed = nn.Linear(self.pose_dim + cond_dim + 1, hidden)
+        self.embed = nn.Linear(self.pose_dim + cond_dim + 1 + (3 if velocity_input else 0), hidden)
         self.embed_act = nn.PReLU()
         self.lstm = nn.LSTM(hidden, hidden, num_layers=2, batch_first=True)
         self.out = nn.Linear(hidden, self.pose_dim)
@@ -120,13 +128,18 @@ class MotionGenerator(nn.Module):
     def _context(self, trajectory: Tensor, cond: Tensor) -> tuple[tuple[Tensor, Tensor], Tensor]:
         """Decoder initial state from ``trajectory`` (B, T, 3) and the pose-free input term (B, T, H).
 
-        W·[pose, cond, t/T] + b = W_pose·pose + (W_cond·cond + b) + w_t·t/T: the code term is computed
-        once per sequence and the time term broadcast over it.
+        W·[pose, cond, t/T, v] + b = W_pose·pose + (W_cond·cond + b) + w_t·t/T + W_v·v: the code term is
+        computed once per sequence, the time term broadcast over it, and the root velocity term (with
+        ``velocity_input``) added per frame.
         """
         _, state = self.traj_lstm(self.traj_embed(trajectory))
         weight = self.embed.weight
-        per_code = F.linear(cond, weight[:, self.pose_dim : -1], self.embed.bias)
-        const = per_code.unsqueeze(1) + self.steps * weight[:, -1]
+        at_time = self.pose_dim + self.cond_dim
+        per_code = F.linear(cond, weight[:, self.pose_dim : at_time], self.embed.bias)
+        const = per_code.unsqueeze(1) + self.steps * weight[:, at_time]
+        if self.velocity_input:
+            steps = trajectory.diff(dim=1, prepend=trajectory[:, :1]) * self.fps
+            const = const + F.linear(steps, weight[:, at_time + 1 :])
         return state, const
 
     def _run(self, prev: Tensor, const: Tensor, state: tuple[Tensor, Tensor]) -> tuple[Tensor, Tensor]:

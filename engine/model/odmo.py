@@ -55,6 +55,8 @@ class OdmoModel(nn.Module):
                 config.window,
                 config.root_relative_poses,
                 config.scheduled_sampling == "free_run",
+                config.root_velocity_input,
+                config.fps,
             )
             n_feet = len(config.foot_joints) if config.foot_contact else 0
             self.contact = nn.Linear(config.motion_hidden, n_feet) if n_feet else None

@@ -71,7 +71,8 @@ def _reference_free_run(
 ) -> torch.Tensor:
     """Free-running decode written the plain way: one nn.LSTM call per frame on the concatenated input.
 
-    A root-relative decoder reads back its output minus its root joint; the trajectory is the root.
+    A root-relative decoder reads back its output minus its root joint; the trajectory is the root. A
+    decoder with ``velocity_input`` also reads the trajectory's step into each frame, in m/s.
     """
     gen = model.motion_gen
     n, t_len = z.shape[0], gen.window
@@ -81,6 +82,9 @@ def _reference_free_run(
     prev, poses = torch.zeros(n, gen.pose_dim), []
     for t in range(t_len):
         x = torch.cat([prev, cond, torch.full((n, 1), t / t_len)], dim=1)
+        if gen.velocity_input:
+            step = traj[:, t] - traj[:, t - 1] if t > 0 else torch.zeros(n, 3)
+            x = torch.cat([x, step * model.config.fps], dim=1)
         out, state = gen.lstm(gen.embed_act(gen.embed(x))[:, None], state)
         pose = gen.out(out[:, 0]).view(n, -1, 3)
         if gen.relative:
@@ -91,9 +95,10 @@ def _reference_free_run(
     return joints + traj.unsqueeze(2) if gen.relative else joints
 
 
-@pytest.mark.parametrize("relative", [True, False])
-def test_free_running_decode_matches_a_step_by_step_nn_lstm_loop(relative: bool) -> None:
-    model = _model(root_relative_poses=relative).eval()
+@pytest.mark.parametrize(("relative", "velocity"), [(True, False), (False, False), (True, True)])
+def test_free_running_decode_matches_a_step_by_step_nn_lstm_loop(relative: bool, velocity: bool) -> None:
+    model = _model(root_relative_poses=relative, root_velocity_input=velocity, fps=30.0).eval()
+    assert model.motion_gen.embed.in_features == J * 3 + 3 * 20 + 1 + (3 if velocity else 0)
     z, action, end = torch.randn(4, 20), torch.tensor([0, 1, 2, 1]), torch.randn(4, 3)
     with torch.no_grad():
         joints, _ = model.decode(z, action, end)
@@ -101,9 +106,10 @@ def test_free_running_decode_matches_a_step_by_step_nn_lstm_loop(relative: bool)
     torch.testing.assert_close(joints, expected, atol=1e-5, rtol=1e-5)
 
 
-def test_free_running_decode_trains_like_the_step_by_step_loop() -> None:
+@pytest.mark.parametrize("velocity", [False, True])
+def test_free_running_decode_trains_like_the_step_by_step_loop(velocity: bool) -> None:
     """The free-running loss terms backpropagate through the fused loop: same gradients as nn.LSTM steps."""
-    model = _model().train()
+    model = _model(root_velocity_input=velocity).train()
     z, action, end = torch.randn(3, 20), torch.tensor([0, 1, 2]), torch.randn(3, 3)
     target = torch.randn(3, T, J, 3)
     grads = []
