@@ -18,6 +18,7 @@ from engine.metrics.classifier import Classifier
 from engine.metrics.diversity import diversity, multimodality
 from engine.metrics.features import canonical_windows, root_heights
 from engine.metrics.fid import fid
+from engine.metrics.joint_range import JointRange
 from engine.metrics.modes import mode_homogeneity, mode_purity
 from engine.metrics.physics import physics_metrics
 from engine.metrics.reconstruction import mpjpe
@@ -143,23 +144,39 @@ def _set_metrics(
     return out
 
 
+def _clips(
+    windows: np.ndarray, mask: np.ndarray | None, heights: np.ndarray | None = None
+) -> list[np.ndarray]:
+    """The (T, J, 3) clips of canonical windows without their padded frames, lifted to their root heights
+    (floor y = 0) when ``heights`` are given."""
+    lifted = np.array(windows, dtype=np.float32, copy=True)
+    if heights is not None:
+        lifted[..., 1] += np.asarray(heights, np.float32)[:, None, None]
+    lengths = np.full(len(lifted), lifted.shape[1]) if mask is None else np.asarray(mask, bool).sum(axis=1)
+    return [w[: max(int(n), 1)] for w, n in zip(lifted, lengths, strict=True)]
+
+
 def _physics(
     windows: np.ndarray,
     mask: np.ndarray | None,
     labels: np.ndarray,
     heights: np.ndarray,
     prepared: PreparedClips,
+    joint_range: JointRange,
 ) -> dict[str, float]:
-    """Physical metrics of canonical windows lifted to their root heights (floor y = 0), over the whole
-    set and per action (``metric@action``); padded frames are left out."""
-    lifted = np.array(windows, dtype=np.float32, copy=True)
-    lifted[..., 1] += np.asarray(heights, np.float32)[:, None, None]
-    lengths = np.full(len(lifted), lifted.shape[1]) if mask is None else np.asarray(mask, bool).sum(axis=1)
-    clips = [w[: max(int(n), 1)] for w, n in zip(lifted, lengths, strict=True)]
-    out = physics_metrics(clips, prepared.skeleton, prepared.fps)
+    """Physical metrics of canonical windows lifted to their root heights (floor y = 0), with the share
+    of joint rotations outside ``joint_range``, over the whole set and per action (``metric@action``);
+    padded frames are left out."""
+    clips = _clips(windows, mask, heights)
+    outside = joint_range.outside(clips, prepared.skeleton)
+    out = physics_metrics(clips, prepared.skeleton, prepared.fps) | {
+        "joint_range_excess": float(outside.mean())
+    }
     for a in np.unique(labels):
-        subset = [c for c, label in zip(clips, labels, strict=True) if label == a]
+        of_a = np.asarray(labels) == a
+        subset = [c for c, keep in zip(clips, of_a, strict=True) if keep]
         row = physics_metrics(subset, prepared.skeleton, prepared.fps)
+        row["joint_range_excess"] = float(outside[of_a].mean())
         out.update({f"{k}{PER_ACTION}{prepared.action_names[int(a)]}": v for k, v in row.items()})
     return out
 
@@ -397,7 +414,8 @@ def evaluate_sets(
     Repeat r uses ``numpy.random.default_rng([seed, r])`` for, in this order: real sets A and B
     (``n_per_action`` windows per action each), A's set metrics, ``generate(actions, n_per_action, rng)``,
     the generated set's metrics, then ``extra(rng)``, whose metrics join the generated row. Both rows also
-    get the physical metrics (``engine.metrics.physics``) when ``generate`` gives root heights. Any model
+    get the physical metrics (``engine.metrics.physics``) when ``generate`` gives root heights, and the
+    share of joint rotations outside the range of set B (``engine.metrics.joint_range``). Any model
     evaluated with the same clips, classifier and seed thus gets the same real row and the same set A.
     """
     labels = prepared.actions
@@ -412,14 +430,17 @@ def evaluate_sets(
         real_runs.append(
             _set_metrics(sets[0].joints, sets[0].mask, sets[0].actions, ref, classifier, names, rng)
         )
+        joint_range = JointRange.fit(_clips(sets[1].joints, sets[1].mask), prepared.skeleton)
         real_runs[-1].update(
-            _physics(sets[0].joints, sets[0].mask, sets[0].actions, sets[0].origin[:, 1], prepared)
+            _physics(
+                sets[0].joints, sets[0].mask, sets[0].actions, sets[0].origin[:, 1], prepared, joint_range
+            )
         )
         ref = _reference(sets[0], classifier)
         gen, gen_labels, gen_heights = generate(actions, n_per_action, rng)
         gen_metrics = _set_metrics(gen, None, gen_labels, ref, classifier, names, rng)
         if gen_heights is not None:
-            gen_metrics.update(_physics(gen, None, gen_labels, gen_heights, prepared))
+            gen_metrics.update(_physics(gen, None, gen_labels, gen_heights, prepared, joint_range))
         if extra is not None:
             gen_metrics.update(extra(rng))
         gen_runs.append(gen_metrics)

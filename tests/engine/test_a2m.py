@@ -306,7 +306,7 @@ def test_evaluation_shares_the_real_sets_with_odmo(
     odmo = evaluate(load_model(tiny_model_dir), clips, classifier, repeats=2, n_per_action=6, seed=4)
     assert a2m["real"] == odmo["real"]
     expected = {"accuracy", "fid", "kid", "precision", "recall", "action_kl", "diversity", "multimodality"}
-    expected |= {"apd", "n_apd", "reconstruction_error_m", "reconstruction_accuracy"}
+    expected |= {"apd", "n_apd", "reconstruction_error_m", "reconstruction_accuracy", "joint_range_excess"}
     assert set(a2m["generated"]) == expected | set(physics_metrics([clips[0].joints], clips[0].skeleton, 20))
     assert set(a2m["per_action"]) == {c.action for c in clips}
     assert all(np.isfinite(v["mean"]) for v in a2m["generated"].values())
