@@ -109,6 +109,11 @@ def parse_args() -> argparse.Namespace:
         help="feed the pose decoder each frame's root velocity (OdmoConfig.root_velocity_input)",
     )
     p.add_argument(
+        "--mean-pose-init",
+        action="store_true",
+        help="start the pose decoder's output at the mean training pose (OdmoConfig.mean_pose_init)",
+    )
+    p.add_argument(
         "--weight",
         action="append",
         default=list(BUNDLED_WEIGHTS),
@@ -159,6 +164,7 @@ def main() -> int:
         free_skate_contacts=args.free_skate_contacts,
         coordination_on=args.coordination_on,
         root_velocity_input=args.root_velocity_input,
+        mean_pose_init=args.mean_pose_init,
         **weights,
     )
     work = args.work
@@ -370,6 +376,8 @@ def model_switches(config: OdmoConfig) -> str:
         )
     if config.root_velocity_input:
         parts.append("`root_velocity_input` (the pose decoder reads each frame's root velocity)")
+    if config.mean_pose_init:
+        parts.append("`mean_pose_init` (the pose decoder starts at the mean training pose)")
     if config.contrastive_pull != 1.0:
         parts.append(
             f"`contrastive_pull = {config.contrastive_pull:g}` (the same-action pull of the contrastive term)"

@@ -32,6 +32,7 @@ _BEFORE_SWITCHES = {
     "w_coordination": 0.0,
     "coordination_on": "all",
     "root_velocity_input": False,
+    "mean_pose_init": False,
 }
 SCHEDULED_SAMPLING = ("one_step", "free_run")
 #: The paper's model in one setting, ``OdmoConfig(n_actions, n_joints, **PAPER)``: every project change off.
@@ -88,7 +89,11 @@ class OdmoConfig(ModelConfig):
     ``spectrum_legs`` False leaves the legs out of the spectrum term. ``root_velocity_input`` feeds the
     pose decoder each frame's root velocity from the generated trajectory (the paper's decoder sees the
     trajectory only through its initial state, so it cannot tell how far the root moves at each frame
-    to hold a planted foot against it).
+    to hold a planted foot against it). ``mean_pose_init`` starts the pose decoder's output at the
+    training windows' mean root-centred pose (its bias; its weights scaled down), so that every seed
+    starts from a body with its hips and shoulders on their own sides (from torch's default
+    initialisation the decoder starts near the root and the sides each girdle takes are the seed's:
+    the bundled recipe's seeds 1 and 2 cross both).
     ``scheduled_sampling`` says where the non-teacher-forced previous poses come from: "one_step" (a
     teacher-forced pass, the default) or "free_run" (a free-running decode, as the reference's per-step
     loop does; measured worse on the bundled recipe, see the README).
@@ -149,6 +154,7 @@ class OdmoConfig(ModelConfig):
     w_coordination: float = 0.0
     coordination_on: str = "all"
     root_velocity_input: bool = False
+    mean_pose_init: bool = False
     arch: str = "odmo"
 
     POSITIVE = ("n_actions", "n_joints", "window", "fps", "latent_dim", "enc_hidden", "enc_fc", "traj_hidden")

@@ -42,6 +42,7 @@ from engine.train.windows import (
 log = logging.getLogger(__name__)
 
 _TERMS = (*LOSS_TERMS, "total")
+MEAN_POSE_WEIGHT_SCALE = 0.1
 
 
 @dataclass
@@ -277,6 +278,22 @@ def _encode_all(model: OdmoModel, prepared: PreparedClips, device: torch.device)
     return mu.cpu().numpy().astype(np.float32), batch.ends.astype(np.float32)
 
 
+@torch.no_grad()
+def start_at_mean_pose(model: OdmoModel, prepared: PreparedClips, train_idx: np.ndarray) -> None:
+    """Set the pose decoder's output bias to the mean pose it decodes (root-centred with
+    ``root_relative_poses``) over the real frames of the training clips' canonical centre windows, and
+    scale its output weights by ``MEAN_POSE_WEIGHT_SCALE`` (``OdmoConfig.mean_pose_init``): from
+    torch's default initialisation they move each joint by about 0.2 m, more than the hips lie apart."""
+    batch = crop_windows(prepared, np.asarray(train_idx), None)
+    joints = batch.joints[np.asarray(batch.mask, bool)]  # (frames, J, 3)
+    if model.config.root_relative_poses:
+        joints = joints - joints[:, :1]
+    out = model.motion_gen.out
+    out.weight.mul_(MEAN_POSE_WEIGHT_SCALE)
+    bias = out.bias
+    bias.copy_(torch.as_tensor(joints.mean(axis=0).reshape(-1), dtype=bias.dtype, device=bias.device))
+
+
 def with_feet(config: OdmoConfig, prepared: PreparedClips, train_idx: np.ndarray) -> OdmoConfig:
     """``config`` with its foot joints (by name) and their resting heights over the training clips filled
     in when it has a contact head and none given; the head is switched off for a skeleton without feet."""
@@ -328,6 +345,8 @@ def train(
         )
     config = with_feet(config, prepared, data.train_idx)
     model = OdmoModel(config, seed=seed).to(dev)
+    if config.mean_pose_init:
+        start_at_mean_pose(model, prepared, data.train_idx)
     model.attach_skeleton(prepared.skeleton)
     validation = _validation_set(prepared, data.val_idx, seed, dev, config)
     run = data.train(OdmoSteps(model, prepared, data.train_idx, validation, ranks), out, config)
