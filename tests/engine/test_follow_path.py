@@ -2,12 +2,16 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
 from engine.errors import ConfigError
 from engine.generate import decode_array, follow_path, resample_path
 from engine.modelio import LoadedModel, load_model
+
+BUNDLED = Path(__file__).resolve().parents[2] / "resources" / "models" / "bandai2-odmo"
 
 
 @pytest.fixture(scope="module")
@@ -52,15 +56,18 @@ def test_a_path_the_model_made_is_followed_closely(loaded):
     assert result.motion.meta["path_error_m"] == pytest.approx(result.path_error_m)
 
 
-def test_a_held_out_path_improves_with_optimisation(loaded):
-    action = _walk_action(loaded)
+def test_a_held_out_path_improves_with_optimisation() -> None:
+    # The bundled model: the tiny test model's trajectory hardly depends on its code (every start fits
+    # this arc to within 1e-8 m), so there would be nothing to optimise.
+    loaded = load_model(BUNDLED)
+    action = loaded.action_names.index("walk")
     reach = np.linalg.norm(loaded.bank.ends[loaded.bank.indices_of(action)][:, [0, 2]], axis=1).mean()
     s = np.linspace(0.0, 1.0, 40)
     # A gentle arc to the right that no training clip drew.
     path = np.stack([0.4 * reach * s**2, reach * s], axis=1)
     result = follow_path(loaded, path, action, mode=0, steps=80, seed=1)
-    assert result.path_error_m < result.initial_error_m
-    np.testing.assert_allclose(result.end[[0, 2]], path[-1], atol=1e-6)
+    assert result.path_error_m < result.initial_error_m - 5e-4  # measured 0.209 -> 0.208 m
+    np.testing.assert_allclose(result.end[[0, 2]], path[-1], atol=1e-5)
     d = result.code - loaded.bank.modes[action].means_[0]
     maha = d @ np.linalg.solve(loaded.bank.modes[action].covariances_[0], d)
     assert maha < 4 * loaded.config.latent_dim
