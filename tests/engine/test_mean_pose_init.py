@@ -9,7 +9,7 @@ import torch
 
 from engine.model.config import OdmoConfig
 from engine.model.odmo import OdmoModel
-from engine.motion.datasets import load_folder
+from engine.motion.datasets import open_folder
 from engine.train.loop import start_at_mean_pose
 from engine.train.windows import crop_windows, prepare_clips
 
@@ -18,10 +18,11 @@ SEEDS = range(8)
 
 @pytest.fixture(scope="module")
 def real(bandai_dir):
-    """Prepared real clips: every 10th of 300 Bandai clips (all ten actions)."""
-    dataset = load_folder(bandai_dir, limit=300)
-    clips = dataset.clips[::10]
-    return prepare_clips(clips, list(dataset.action_names), 20.0, 60)
+    """Prepared real clips: every 97th Bandai clip (30 clips, every action)."""
+    folder = open_folder(bandai_dir)
+    clips = [folder[k] for k in range(0, len(folder), 97)]
+    assert {c.action for c in clips} == set(folder.action_names)
+    return prepare_clips(clips, list(folder.action_names), 20.0, 60)
 
 
 def _config(prepared, **fields) -> OdmoConfig:
