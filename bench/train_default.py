@@ -38,7 +38,7 @@ from engine.generate import interpolate
 from engine.metrics.classifier import load_classifier, train_classifier
 from engine.metrics.evaluate import evaluate
 from engine.metrics.smoothness import max_frame_jump
-from engine.model.config import COORDINATION_ON, FREE_SKATE_CONTACTS, SPEED_ERRORS, OdmoConfig
+from engine.model.config import COORDINATION_ON, FREE_SKATE_CONTACTS, POSE_OUTPUTS, SPEED_ERRORS, OdmoConfig
 from engine.modelio import load_model
 from engine.motion.datasets import load_folder
 from engine.motion.resample import resample_motion
@@ -114,6 +114,12 @@ def parse_args() -> argparse.Namespace:
         help="start the pose decoder's output at the mean training pose (OdmoConfig.mean_pose_init)",
     )
     p.add_argument(
+        "--pose-output",
+        choices=POSE_OUTPUTS,
+        default="joints",
+        help="what the pose decoder emits: joint positions, or local rotations (OdmoConfig.pose_output)",
+    )
+    p.add_argument(
         "--weight",
         action="append",
         default=list(BUNDLED_WEIGHTS),
@@ -165,6 +171,7 @@ def main() -> int:
         coordination_on=args.coordination_on,
         root_velocity_input=args.root_velocity_input,
         mean_pose_init=args.mean_pose_init,
+        pose_output=args.pose_output,
         **weights,
     )
     work = args.work
@@ -331,7 +338,12 @@ def model_switches(config: OdmoConfig) -> str:
             "`root_relative_poses` (the decoder emits the local movement profile; the root is the "
             "generated trajectory)"
         )
-    if config.bone_projection:
+    if config.pose_output == "rotations":
+        parts.append(
+            "`pose_output = rotations` (the pose decoder emits local joint rotations; forward kinematics "
+            "on the skeleton places the joints)"
+        )
+    elif config.bone_projection:
         parts.append("`bone_projection` (decoded joints lie on the skeleton's bone lengths by construction)")
     if config.foot_contact:
         parts.append(

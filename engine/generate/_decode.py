@@ -84,9 +84,9 @@ def _writable(array: np.ndarray, dtype: type) -> np.ndarray:
 
 
 def ready_model(loaded: LoadedModel) -> OdmoModel:
-    """The loaded ODMO network, decoding onto the model's skeleton (bone projection attached once)."""
+    """The loaded ODMO network, decoding onto the model's skeleton (attached once)."""
     model = loaded.model
-    if model.config.bone_projection and model.projection is None:
+    if model.skeleton is None:
         model.attach_skeleton(loaded.skeleton)
     return model
 

@@ -33,6 +33,7 @@ _BEFORE_SWITCHES = {
     "coordination_on": "all",
     "root_velocity_input": False,
     "mean_pose_init": False,
+    "pose_output": "joints",
 }
 SCHEDULED_SAMPLING = ("one_step", "free_run")
 #: The paper's model in one setting, ``OdmoConfig(n_actions, n_joints, **PAPER)``: every project change off.
@@ -41,6 +42,7 @@ TRAIN_PRECISIONS = ("float32", "bfloat16")
 SPEED_ERRORS = ("absolute", "log")
 FREE_SKATE_CONTACTS = ("data", "own")
 COORDINATION_ON = ("all", "legs")
+POSE_OUTPUTS = ("joints", "rotations")
 
 
 @dataclass
@@ -93,7 +95,11 @@ class OdmoConfig(ModelConfig):
     training windows' mean root-centred pose (its bias; its weights scaled down), so that every seed
     starts from a body with its hips and shoulders on their own sides (from torch's default
     initialisation the decoder starts near the root and the sides each girdle takes are the seed's:
-    the bundled recipe's seeds 1 and 2 cross both).
+    the bundled recipe's seeds 1 and 2 cross both; with ``pose_output`` "rotations" it starts at the
+    mean local rotations). ``pose_output`` "rotations" has the pose decoder emit each joint's local
+    rotation (6D) and places the joints by forward kinematics on the skeleton (bone lengths and the
+    girdles' shapes hold by construction; ``bone_projection`` is then unused); it reads back the joints
+    as the "joints" decoder does, and needs ``root_relative_poses``.
     ``scheduled_sampling`` says where the non-teacher-forced previous poses come from: "one_step" (a
     teacher-forced pass, the default) or "free_run" (a free-running decode, as the reference's per-step
     loop does; measured worse on the bundled recipe, see the README).
@@ -155,6 +161,7 @@ class OdmoConfig(ModelConfig):
     coordination_on: str = "all"
     root_velocity_input: bool = False
     mean_pose_init: bool = False
+    pose_output: str = "joints"
     arch: str = "odmo"
 
     POSITIVE = ("n_actions", "n_joints", "window", "fps", "latent_dim", "enc_hidden", "enc_fc", "traj_hidden")
@@ -169,6 +176,7 @@ class OdmoConfig(ModelConfig):
         "speed_error": SPEED_ERRORS,
         "free_skate_contacts": FREE_SKATE_CONTACTS,
         "coordination_on": COORDINATION_ON,
+        "pose_output": POSE_OUTPUTS,
         "scheduled_sampling": SCHEDULED_SAMPLING,
     }
     ARCH = "odmo"
@@ -176,6 +184,8 @@ class OdmoConfig(ModelConfig):
 
     def check(self) -> None:
         """Contrastive pairs and foot joints."""
+        if self.pose_output == "rotations" and not self.root_relative_poses:
+            raise ConfigError("pose_output 'rotations' needs root_relative_poses (the root is its path)")
         if self.batch_size < 2:
             raise ConfigError("batch_size must be at least 2 (windows come in contrastive pairs)")
         try:

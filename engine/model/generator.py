@@ -7,9 +7,13 @@ import logging
 import warnings
 from collections.abc import Callable
 
+import numpy as np
 import torch
 import torch.nn.functional as F  # noqa: N812
 from torch import Tensor, nn
+
+from engine.motion.kinematics import forward_kinematics, rotation_6d_to_matrix
+from engine.motion.skeleton import Skeleton
 
 logger = logging.getLogger(__name__)
 
@@ -93,7 +97,10 @@ class MotionGenerator(nn.Module):
     the root, so the generated root follows the trajectory exactly. With ``velocity_input`` each frame's
     input also holds the trajectory's step into that frame (m/s at ``fps``; zero at frame 0), so the
     decoder sees how far the root moves while it places the feet, not only the trajectory's summary in
-    its initial state.
+    its initial state. With ``rotations`` the output layer emits each joint's local rotation (6D; the
+    root's is its global one) and the pose is the skeleton's forward kinematics from a root at the
+    origin (``attach_skeleton`` first; it needs ``relative``): bone lengths hold by construction. The
+    decoder still reads back joint positions.
     """
 
     def __init__(
@@ -106,8 +113,13 @@ class MotionGenerator(nn.Module):
         free_running_samples: bool = False,
         velocity_input: bool = False,
         fps: float = 20.0,
+        rotations: bool = False,
     ):
         super().__init__()
+        if rotations and not relative:
+            raise ValueError("a rotation decoder places joints about the root: it needs relative poses")
+        self.rotations = rotations
+        self.n_joints = n_joints
         self.free_running_samples = free_running_samples
         self.pose_dim = n_joints * 3
         self.cond_dim = cond_dim
@@ -120,10 +132,31 @@ class MotionGenerator(nn.Module):
         self.embed = nn.Linear(self.pose_dim + cond_dim + 1 + (3 if velocity_input else 0), hidden)
         self.embed_act = nn.PReLU()
         self.lstm = nn.LSTM(hidden, hidden, num_layers=2, batch_first=True)
-        self.out = nn.Linear(hidden, self.pose_dim)
+        self.out = nn.Linear(hidden, n_joints * 6 if rotations else self.pose_dim)
+        self.register_buffer("fk_offsets", torch.zeros(n_joints, 3), persistent=False)
+        self.fk_parents: tuple[int, ...] | None = None
         steps = torch.arange(window, dtype=torch.float32) / window
         self.register_buffer("steps", steps.view(1, -1, 1), persistent=False)
         self._step_cache: tuple[list[tuple[Tensor, int]], tuple[Tensor | list[Tensor], ...]] | None = None
+
+    @torch.no_grad()
+    def attach_skeleton(self, skeleton: Skeleton) -> None:
+        """Take the skeleton whose forward kinematics places a rotation decoder's joints."""
+        offsets = torch.tensor(np.array(skeleton.offsets), dtype=torch.float32)
+        offsets[skeleton.root] = 0.0
+        self.fk_offsets.copy_(offsets)
+        self.fk_parents = tuple(int(p) for p in skeleton.parents)
+
+    def _pose(self, out: Tensor) -> Tensor:
+        """Poses (..., J·3) of the output layer's values (..., out): the joints themselves, or with
+        ``rotations`` the forward kinematics of their 6D local rotations, root at the origin."""
+        if not self.rotations:
+            return out
+        if self.fk_parents is None:
+            raise RuntimeError("a rotation decoder needs attach_skeleton before it decodes")
+        local = rotation_6d_to_matrix(out.unflatten(-1, (self.n_joints, 6)))
+        origin = out.new_zeros(*out.shape[:-1], 3)
+        return forward_kinematics(local, self.fk_offsets, self.fk_parents, origin).flatten(-2)
 
     def _context(self, trajectory: Tensor, cond: Tensor) -> tuple[tuple[Tensor, Tensor], Tensor]:
         """Decoder initial state from ``trajectory`` (B, T, 3) and the pose-free input term (B, T, H).
@@ -147,7 +180,7 @@ class MotionGenerator(nn.Module):
         ``prev`` (B, T, J·3), in one LSTM call."""
         emb = self.embed_act(const + F.linear(prev, self.embed.weight[:, : self.pose_dim]))
         out, _ = self.lstm(emb, state)
-        return self.out(out).float(), out  # float32 under autocast too
+        return self._pose(self.out(out).float()), out  # float32 under autocast too
 
     def forward(
         self,
@@ -245,8 +278,25 @@ class MotionGenerator(nn.Module):
         under autocast (whose lower precision would compound over the frames). Returns the poses and the
         top-layer hidden states.
         """
+        if self.rotations:
+            return self._free_run_eager(const.float(), (state[0].float(), state[1].float()))
         with torch.autocast(const.device.type, enabled=False):
             fused, bias_next, slope, w_ih, w_hh, bias = self._step_weights()
             h0, c0 = state[0].float(), state[1].float()
             tops = _compiled_loop()(const.float(), bias_next, h0, c0, fused, slope, w_ih, w_hh, bias)
             return self.out(tops), tops
+
+    def _free_run_eager(self, const: Tensor, state: tuple[Tensor, Tensor]) -> tuple[Tensor, Tensor]:
+        """``_free_run`` one nn.LSTM step at a time, for a decoder whose read-back is not linear in its
+        output (forward kinematics), in float32."""
+        with torch.autocast(const.device.type, enabled=False):
+            w_pose = self.embed.weight[:, : self.pose_dim]
+            prev = const.new_zeros(const.shape[0], self.pose_dim)
+            poses, tops = [], []
+            for t in range(const.shape[1]):
+                x = self.embed_act(torch.addmm(const[:, t], prev, w_pose.t()))
+                top, state = self.lstm(x.unsqueeze(1), state)
+                poses.append(self._pose(self.out(top[:, 0])))
+                tops.append(top[:, 0])
+                prev = self._readback(poses[-1])
+            return torch.stack(poses, 1), torch.stack(tops, 1)

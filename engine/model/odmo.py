@@ -57,18 +57,23 @@ class OdmoModel(nn.Module):
                 config.scheduled_sampling == "free_run",
                 config.root_velocity_input,
                 config.fps,
+                config.pose_output == "rotations",
             )
             n_feet = len(config.foot_joints) if config.foot_contact else 0
             self.contact = nn.Linear(config.motion_hidden, n_feet) if n_feet else None
         self.reset_parameters(torch.Generator().manual_seed(seed))
         self.projection: BoneProjection | None = None
+        self.skeleton: Skeleton | None = None
 
     def attach_skeleton(self, skeleton: Skeleton) -> None:
-        """Decode onto ``skeleton``'s bone lengths from now on (when ``config.bone_projection`` is on)."""
-        if not self.config.bone_projection:
-            return
-        device = next(self.parameters()).device
-        self.projection = BoneProjection(skeleton).to(device)
+        """Decode onto ``skeleton`` from now on: by forward kinematics (``pose_output`` "rotations") or
+        projected onto its bone lengths (``bone_projection``)."""
+        self.skeleton = skeleton
+        if self.config.pose_output == "rotations":
+            self.motion_gen.attach_skeleton(skeleton)
+        elif self.config.bone_projection:
+            device = next(self.parameters()).device
+            self.projection = BoneProjection(skeleton).to(device)
 
     @torch.no_grad()
     def reset_parameters(self, generator: torch.Generator) -> None:

@@ -8,13 +8,11 @@ from pathlib import Path
 
 import numpy as np
 import torch
-from scipy.spatial.transform import Rotation
 from sklearn.decomposition import PCA
 
 from engine.latent.bank import LatentBank, build_bank
 from engine.model.a2m import A2M_LOSS_TERMS, A2mConfig, A2mModel, a2m_losses
 from engine.modelio import save_bank, write_model_folder
-from engine.motion.ik import joints_to_rotations
 from engine.motion.motion import Motion
 from engine.train.epochs import (
     TrainProgress,
@@ -25,6 +23,7 @@ from engine.train.epochs import (
 )
 from engine.train.kind_run import KindRun, RunOptions
 from engine.train.pairs import PairSampler
+from engine.train.rest_pose import mean_local_rotations
 from engine.train.windows import PreparedClips, WindowBatch, crop_windows
 
 log = logging.getLogger(__name__)
@@ -93,17 +92,6 @@ class A2mSteps:
         share = self.teacher_batches / max(1, self.batches)
         self.batches = self.teacher_batches = 0
         return {"teacher_batches": share}
-
-
-def rest_rotations(prepared: PreparedClips, indices: np.ndarray) -> np.ndarray:
-    """(J, 3) axis-angle of each joint's mean local rotation over the canonical centre windows of clips
-    ``indices`` (inverse kinematics, ``engine.motion.ik``): where a "lie" generator's output starts."""
-    batch = crop_windows(prepared, indices, None)
-    frames = batch.joints[batch.mask]
-    _, local, _, _ = joints_to_rotations(Motion(frames, prepared.fps, prepared.skeleton))
-    return np.stack(
-        [Rotation.from_quat(local[:, j], scalar_first=True).mean().as_rotvec() for j in range(local.shape[1])]
-    )
 
 
 @torch.no_grad()
@@ -193,7 +181,7 @@ def train_a2m(
     model = A2mModel(config, seed=seed)
     if config.pose_rep == "lie":
         model.set_skeleton(prepared.skeleton)
-        model.set_rest_bias(rest_rotations(prepared, train_idx))
+        model.set_rest_bias(mean_local_rotations(prepared, train_idx).as_rotvec())
     model = model.to(data.device)
     validation = crop_windows(prepared, data.val_idx, None) if len(data.val_idx) else None
     run = data.train(A2mSteps(model, prepared, train_idx, validation), out, config)

@@ -31,6 +31,7 @@ from engine.train.epochs import (
 )
 from engine.train.kind_run import KindRun, RunOptions
 from engine.train.pairs import PairSampler
+from engine.train.rest_pose import centre_frames, mean_local_rotations
 from engine.train.windows import (
     PreparedClips,
     WindowBatch,
@@ -280,18 +281,20 @@ def _encode_all(model: OdmoModel, prepared: PreparedClips, device: torch.device)
 
 @torch.no_grad()
 def start_at_mean_pose(model: OdmoModel, prepared: PreparedClips, train_idx: np.ndarray) -> None:
-    """Set the pose decoder's output bias to the mean pose it decodes (root-centred with
-    ``root_relative_poses``) over the real frames of the training clips' canonical centre windows, and
-    scale its output weights by ``MEAN_POSE_WEIGHT_SCALE`` (``OdmoConfig.mean_pose_init``): from
-    torch's default initialisation they move each joint by about 0.2 m, more than the hips lie apart."""
-    batch = crop_windows(prepared, np.asarray(train_idx), None)
-    joints = batch.joints[np.asarray(batch.mask, bool)]  # (frames, J, 3)
-    if model.config.root_relative_poses:
-        joints = joints - joints[:, :1]
+    """Set the pose decoder's output bias to the mean of what it emits over the real frames of the
+    training clips' canonical centre windows (the pose, root-centred with ``root_relative_poses``; with
+    ``pose_output`` "rotations" each joint's mean local rotation, in 6D), and scale its output weights by
+    ``MEAN_POSE_WEIGHT_SCALE`` (``OdmoConfig.mean_pose_init``): from torch's default initialisation they
+    move each joint by about 0.2 m, more than the hips lie apart."""
+    if model.config.pose_output == "rotations":
+        matrices = mean_local_rotations(prepared, train_idx).as_matrix()
+        mean = np.concatenate([matrices[:, :, 0], matrices[:, :, 1]], axis=1)  # (J, 6): two columns
+    else:
+        frames = centre_frames(prepared, train_idx)
+        mean = (frames - frames[:, :1] if model.config.root_relative_poses else frames).mean(axis=0)
     out = model.motion_gen.out
     out.weight.mul_(MEAN_POSE_WEIGHT_SCALE)
-    bias = out.bias
-    bias.copy_(torch.as_tensor(joints.mean(axis=0).reshape(-1), dtype=bias.dtype, device=bias.device))
+    out.bias.copy_(torch.as_tensor(mean.reshape(-1), dtype=out.bias.dtype, device=out.bias.device))
 
 
 def with_feet(config: OdmoConfig, prepared: PreparedClips, train_idx: np.ndarray) -> OdmoConfig:
