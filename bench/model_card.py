@@ -37,6 +37,7 @@ METRICS = (
     ("heading_error_deg", "Heading: body's facing line against its direction of travel (degrees)"),
     ("torso_twist_deg", "Torso twist: shoulders' axis against the hips' (degrees, mean absolute)"),
     ("foot_sync", "Foot sync: correlation of the two ankles' velocities (−: alternating, +1: a hop)"),
+    ("joint_range_excess", "Joint rotations outside 99 % of real ones (share of frame × joint)"),
 )
 SKATE_FLOOR = 0.02  # m/s: the planted-foot target for actions that stand still
 SYNC_TOL = 0.3  # foot sync (a correlation) a gait may differ from real's: walks −0.4 to −0.65, a hop +1
