@@ -6,13 +6,14 @@ import functools
 import logging
 import warnings
 from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 import torch
 import torch.nn.functional as F  # noqa: N812
 from torch import Tensor, nn
 
-from engine.motion.kinematics import forward_kinematics, rotation_6d_to_matrix
+from engine.motion.kinematics import FkLevels, fk_levels, forward_kinematics, rotation_6d_to_matrix, walk_tree
 from engine.motion.skeleton import Skeleton
 
 logger = logging.getLogger(__name__)
@@ -51,15 +52,59 @@ def _free_run_loop(
     for t in range(len(steps)):
         if t > 0:
             x = torch.addmm(steps[t], h[-1], fused)
-        x = F.prelu(x, slope)
-        for k in range(len(w_ih)):
-            i, f, o, g = torch.addmm(bias[k], x, w_ih[k]).addmm_(h[k], w_hh[k]).sigmoid().chunk(4, 1)
-            cell = torch.addcmul(f * c[k] - i, i, g, value=2.0)  # f·c + i·(2g − 1) = f·c + i·tanh(gate)
-            x = o * cell.tanh()
-            h[k] = x
-            c[k] = cell
-        tops.append(x)
+        tops.append(_cell_stack(F.prelu(x, slope), h, c, w_ih, w_hh, bias))
     return torch.stack(tops, dim=1)
+
+
+def _cell_stack(
+    x: Tensor, h: list[Tensor], c: list[Tensor], w_ih: list[Tensor], w_hh: list[Tensor], bias: list[Tensor]
+) -> Tensor:
+    """One frame through the LSTM layers (weights as in ``_free_run_loop``): updates the states ``h`` and
+    ``c`` in place and returns the top layer's output."""
+    for k in range(len(w_ih)):
+        i, f, o, g = torch.addmm(bias[k], x, w_ih[k]).addmm_(h[k], w_hh[k]).sigmoid().chunk(4, 1)
+        cell = torch.addcmul(f * c[k] - i, i, g, value=2.0)  # f·c + i·(2g − 1) = f·c + i·tanh(gate)
+        x = o * cell.tanh()
+        h[k] = x
+        c[k] = cell
+    return x
+
+
+def _free_run_fk_loop(
+    const: Tensor,
+    h0: Tensor,
+    c0: Tensor,
+    w_pose: Tensor,
+    w_out: Tensor,
+    b_out: Tensor,
+    slope: Tensor,
+    w_ih: list[Tensor],
+    w_hh: list[Tensor],
+    bias: list[Tensor],
+    offsets: Tensor,
+    joints: list[Tensor],
+    slots: list[Tensor],
+    back: Tensor,
+) -> tuple[Tensor, Tensor]:
+    """Poses (B, T, J·3) and top-layer hidden states (B, T, H) of a free-running rotation decoder
+    (TorchScript-compatible): each frame's 6D rotations ``top·w_out + b_out`` placed by ``walk_tree`` on
+    ``offsets`` and the levels ``joints`` / ``slots`` / ``back``, root at the origin, and read back through
+    the transposed ``w_pose``; the rest as in ``_free_run_loop``."""
+    h = [h0[k] for k in range(len(w_ih))]
+    c = [c0[k] for k in range(len(w_ih))]
+    steps = const.transpose(0, 1).contiguous().unbind(0)
+    origin = const.new_zeros(const.shape[0], 3)
+    tops: list[Tensor] = []
+    poses: list[Tensor] = []
+    x = steps[0]
+    for t in range(len(steps)):
+        if t > 0:
+            x = torch.addmm(steps[t], poses[-1], w_pose)
+        top = _cell_stack(F.prelu(x, slope), h, c, w_ih, w_hh, bias)
+        local = rotation_6d_to_matrix(torch.addmm(b_out, top, w_out).view(const.shape[0], -1, 6))
+        poses.append(walk_tree(local, offsets, origin, joints, slots, back).flatten(1))
+        tops.append(top)
+    return torch.stack(poses, dim=1), torch.stack(tops, dim=1)
 
 
 def _identity(tensors: list[Tensor]) -> list[tuple[Tensor, int]] | None:
@@ -76,15 +121,15 @@ def _same(old: list[tuple[Tensor, int]], new: list[tuple[Tensor, int]]) -> bool:
 
 
 @functools.cache
-def _compiled_loop() -> Callable[..., Tensor]:
-    """The decoder loop compiled with TorchScript (no per-op Python overhead), or the plain one."""
+def _compiled(loop: Callable[..., Any]) -> Callable[..., Any]:
+    """A decoder loop compiled with TorchScript (no per-op Python overhead), or the plain one."""
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")  # torch.jit.script is deprecated but still the lightest option
-            return torch.jit.script(_free_run_loop)
+            return torch.jit.script(loop)
     except Exception as error:  # no TorchScript here, or no source to compile: the same loop, eager
         logger.info("TorchScript unavailable (%s); the free-running decoder runs eagerly", error)
-        return _free_run_loop
+        return loop
 
 
 class MotionGenerator(nn.Module):
@@ -239,11 +284,13 @@ class MotionGenerator(nn.Module):
         return joints + trajectory.unsqueeze(2) if self.relative else joints
 
     def _step_weights(self) -> tuple[Tensor | list[Tensor], ...]:
-        """Decoder weights laid out for ``_free_run_loop``; cached while no parameter changes.
+        """Decoder weights laid out for the compiled loop; cached while no parameter changes.
 
-        The output layer, the read-back map R (identity, or root-centring if relative) and the next
-        frame's pose embedding are folded into one H×H product (pose_t = R·(W_out·h_t + b), so
-        W_pose·pose_t = (W_pose·R·W_out)·h_t + W_pose·R·b).
+        ``_free_run_loop`` (joints) gets the output layer, the read-back map R (identity, or
+        root-centring if relative) and the next frame's pose embedding folded into one H×H product
+        (pose_t = R·(W_out·h_t + b), so W_pose·pose_t = (W_pose·R·W_out)·h_t + W_pose·R·b) and that bias;
+        ``_free_run_fk_loop`` (rotations) the transposed pose embedding, output weights and output bias.
+        Then the PReLU slope and the LSTM layers.
         """
         lstm = self.lstm
         sources = [self.embed.weight, self.out.weight, self.out.bias, self.embed_act.weight]
@@ -255,12 +302,15 @@ class MotionGenerator(nn.Module):
             return cache[1]
         with torch.set_grad_enabled(tracked):
             w_pose = self.embed.weight[:, : self.pose_dim]
-            w_out = self._readback(self.out.weight.t()).t()
+            if self.rotations:
+                head = (w_pose.t().contiguous(), self.out.weight.t().contiguous(), self.out.bias)
+            else:
+                w_out = self._readback(self.out.weight.t()).t()
+                head = ((w_pose @ w_out).t().contiguous(), self._readback(self.out.bias) @ w_pose.t())
             layers = range(lstm.num_layers)
             param = functools.partial(getattr, lstm)
             prepared = (
-                (w_pose @ w_out).t().contiguous(),
-                self._readback(self.out.bias) @ w_pose.t(),
+                *head,
                 self.embed_act.weight,
                 [_loop_gates(param(f"weight_ih_l{k}")).t().contiguous() for k in layers],
                 [_loop_gates(param(f"weight_hh_l{k}")).t().contiguous() for k in layers],
@@ -273,30 +323,25 @@ class MotionGenerator(nn.Module):
     def _free_run(self, const: Tensor, state: tuple[Tensor, Tensor]) -> tuple[Tensor, Tensor]:
         """Autoregressive decode, one frame at a time with LSTM cells sharing the nn.LSTM weights.
 
-        The per-frame loop runs in TorchScript where available; every frame's pose is read out of the
-        stacked top-layer hidden states with a single matrix product. It always runs in float32, also
+        The per-frame loop runs in TorchScript where available; a joint decoder's poses are read out of the
+        stacked top-layer hidden states with a single matrix product after it, a rotation decoder's are
+        placed by forward kinematics inside it (they are read back). It always runs in float32, also
         under autocast (whose lower precision would compound over the frames). Returns the poses and the
         top-layer hidden states.
         """
-        if self.rotations:
-            return self._free_run_eager(const.float(), (state[0].float(), state[1].float()))
         with torch.autocast(const.device.type, enabled=False):
-            fused, bias_next, slope, w_ih, w_hh, bias = self._step_weights()
             h0, c0 = state[0].float(), state[1].float()
-            tops = _compiled_loop()(const.float(), bias_next, h0, c0, fused, slope, w_ih, w_hh, bias)
+            if self.rotations:
+                w_pose, w_out, b_out, slope, w_ih, w_hh, bias = self._step_weights()
+                levels = self._fk_levels()
+                args = (w_pose, w_out, b_out, slope, w_ih, w_hh, bias, self.fk_offsets, *levels)
+                return _compiled(_free_run_fk_loop)(const.float(), h0, c0, *args)
+            fused, bias_next, slope, w_ih, w_hh, bias = self._step_weights()
+            tops = _compiled(_free_run_loop)(const.float(), bias_next, h0, c0, fused, slope, w_ih, w_hh, bias)
             return self.out(tops), tops
 
-    def _free_run_eager(self, const: Tensor, state: tuple[Tensor, Tensor]) -> tuple[Tensor, Tensor]:
-        """``_free_run`` one nn.LSTM step at a time, for a decoder whose read-back is not linear in its
-        output (forward kinematics), in float32."""
-        with torch.autocast(const.device.type, enabled=False):
-            w_pose = self.embed.weight[:, : self.pose_dim]
-            prev = const.new_zeros(const.shape[0], self.pose_dim)
-            poses, tops = [], []
-            for t in range(const.shape[1]):
-                x = self.embed_act(torch.addmm(const[:, t], prev, w_pose.t()))
-                top, state = self.lstm(x.unsqueeze(1), state)
-                poses.append(self._pose(self.out(top[:, 0])))
-                tops.append(top[:, 0])
-                prev = self._readback(poses[-1])
-            return torch.stack(poses, 1), torch.stack(tops, 1)
+    def _fk_levels(self) -> FkLevels:
+        """The attached skeleton's depth levels, on the decoder's device."""
+        if self.fk_parents is None:
+            raise RuntimeError("a rotation decoder needs attach_skeleton before it decodes")
+        return fk_levels(self.fk_parents).to(self.fk_offsets.device)

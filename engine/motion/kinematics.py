@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import functools
 import itertools
+from typing import NamedTuple
 
 import numpy as np
 import torch
@@ -21,11 +22,12 @@ from engine.motion.skeleton import Skeleton
 _EPS = 1e-8
 
 
-def _frame(a: Tensor, b: Tensor) -> Tensor:
-    """(..., 3, 3) orthonormal frame (columns) of vectors ``a`` and ``b`` (..., 3) by Gram–Schmidt."""
-    e1 = a / a.norm(dim=-1, keepdim=True).clamp_min(_EPS)
+def _frame(a: Tensor, b: Tensor, eps: float = _EPS) -> Tensor:
+    """(..., 3, 3) orthonormal frame (columns) of vectors ``a`` and ``b`` (..., 3) by Gram–Schmidt
+    (TorchScript-compatible)."""
+    e1 = a / torch.linalg.vector_norm(a, dim=-1, keepdim=True).clamp_min(eps)
     b = b - (b * e1).sum(-1, keepdim=True) * e1
-    e2 = b / b.norm(dim=-1, keepdim=True).clamp_min(_EPS)
+    e2 = b / torch.linalg.vector_norm(b, dim=-1, keepdim=True).clamp_min(eps)
     return torch.stack([e1, e2, torch.linalg.cross(e1, e2)], dim=-1)
 
 
@@ -117,37 +119,62 @@ def rotation_6d_to_matrix(d6: Tensor) -> Tensor:
     return _frame(d6[..., :3], d6[..., 3:])
 
 
-def forward_kinematics(local: Tensor, offsets: Tensor, parents: np.ndarray, root: Tensor) -> Tensor:
-    """(..., J, 3) positions from local rotation matrices (..., J, 3, 3), rest ``offsets`` (J, 3) and root
-    positions (..., 3); ``parents`` precede children, the root's is -1.
+class FkLevels(NamedTuple):
+    """A tree's joints a depth at a time, for ``walk_tree``: ``joints[d]`` the joints of depth d,
+    ``slots[d - 1]`` the index of each one's parent among ``joints[d - 1]``, ``back`` the index that puts
+    the depth-ordered joints back in joint order."""
 
-    The tree is walked a depth at a time (every joint of one depth in one batched product), so the number
-    of tensor operations grows with the skeleton's depth, not its joint count.
-    """
-    depths, back = _depth_order(tuple(int(p) for p in np.asarray(parents)))
-    offsets = offsets.to(local)
-    world = [local[..., depths[0], :, :]]
-    pos = [root.unsqueeze(-2).expand(*root.shape[:-1], len(depths[0]), 3)]
-    for joints, slot in depths[1:]:
-        above = world[-1][..., slot, :, :]
-        world.append(above @ local[..., joints, :, :])
-        pos.append(pos[-1][..., slot, :] + (above @ offsets[joints].unsqueeze(-1)).squeeze(-1))
-    return torch.cat(pos, dim=-2)[..., back, :]
+    joints: list[Tensor]
+    slots: list[Tensor]
+    back: Tensor
+
+    def to(self, device: torch.device) -> FkLevels:
+        """The same levels on ``device``."""
+        return FkLevels(
+            [j.to(device) for j in self.joints], [s.to(device) for s in self.slots], self.back.to(device)
+        )
 
 
 @functools.cache
-def _depth_order(parents: tuple[int, ...]) -> tuple[list, list[int]]:
-    """The joints grouped by depth, [roots, (joints, index of each one's parent in the depth above), …]
-    (every root is placed at the root position), and the index that puts the depth-ordered joints back
-    in ``parents`` order."""
+def fk_levels(parents: tuple[int, ...]) -> FkLevels:
+    """The depth levels of the tree ``parents`` (parents precede children, the root's is -1)."""
     depth: list[int] = []
     for j, p in enumerate(parents):
         if p >= j:
             raise ValueError(f"parents must precede their children; joint {j} has parent {p}")
         depth.append(0 if p < 0 else depth[p] + 1)
     levels = [[j for j in range(len(parents)) if depth[j] == d] for d in range(max(depth, default=-1) + 1)]
-    groups: list = [levels[0]]
-    for above, joints in itertools.pairwise(levels):
-        groups.append((joints, [above.index(parents[j]) for j in joints]))
+    slots = [[above.index(parents[j]) for j in joints] for above, joints in itertools.pairwise(levels)]
     order = [j for level in levels for j in level]
-    return groups, [order.index(j) for j in range(len(parents))]
+    return FkLevels(
+        [torch.tensor(level) for level in levels],
+        [torch.tensor(slot) for slot in slots],
+        torch.tensor([order.index(j) for j in range(len(parents))]),
+    )
+
+
+def walk_tree(
+    local: Tensor, offsets: Tensor, root: Tensor, joints: list[Tensor], slots: list[Tensor], back: Tensor
+) -> Tensor:
+    """(..., J, 3) positions from local rotation matrices (..., J, 3, 3), rest ``offsets`` (J, 3) and root
+    positions (..., 3), a depth level (``fk_levels``) at a time: every joint of one depth in one batched
+    product, so the number of tensor operations grows with the tree's depth, not its joint count.
+    TorchScript-compatible (the free-running rotation decoder runs it every frame)."""
+    axis = local.dim() - 3
+    world = local.index_select(axis, joints[0])
+    pos = root.unsqueeze(-2).expand_as(world.select(-1, 0))
+    places = [pos]
+    for k in range(1, len(joints)):
+        above = world.index_select(axis, slots[k - 1])
+        step = (above @ offsets.index_select(0, joints[k]).unsqueeze(-1)).squeeze(-1)
+        pos = pos.index_select(axis, slots[k - 1]) + step
+        world = above @ local.index_select(axis, joints[k])
+        places.append(pos)
+    return torch.cat(places, dim=axis).index_select(axis, back)
+
+
+def forward_kinematics(local: Tensor, offsets: Tensor, parents: np.ndarray, root: Tensor) -> Tensor:
+    """(..., J, 3) positions from local rotation matrices (..., J, 3, 3), rest ``offsets`` (J, 3) and root
+    positions (..., 3); ``parents`` precede children, the root's is -1 (``walk_tree``)."""
+    levels = fk_levels(tuple(int(p) for p in np.asarray(parents))).to(local.device)
+    return walk_tree(local, offsets.to(local), root, levels.joints, levels.slots, levels.back)

@@ -145,7 +145,7 @@ def test_compiled_and_eager_decoder_loops_agree() -> None:
         fused, bias_next, slope, w_ih, w_hh, bias = gen._step_weights()
         args = (const, bias_next, state[0], state[1], fused, slope, w_ih, w_hh, bias)
         eager = generator_module._free_run_loop(*args)
-        compiled = generator_module._compiled_loop()(*args)
+        compiled = generator_module._compiled(generator_module._free_run_loop)(*args)
     torch.testing.assert_close(compiled, eager, atol=1e-6, rtol=1e-6)
 
 

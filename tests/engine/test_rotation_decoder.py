@@ -13,6 +13,7 @@ from scipy.spatial.transform import Rotation
 
 from engine.errors import ConfigError
 from engine.generate import decode, sample
+from engine.model import generator as generator_module
 from engine.model.config import OdmoConfig
 from engine.model.odmo import OdmoModel
 from engine.modelio import load_model, save_model
@@ -165,3 +166,20 @@ def test_training_a_rotation_decoder_lowers_its_reconstruction_loss(tmp_path: Pa
     for drawn in sample(loaded, 0, 4, 1):
         lengths = _bone_lengths(drawn.motion.joints, procedural_skeleton().parents)
         assert np.abs(lengths - rest).max() < 1e-5
+
+
+def test_compiled_and_eager_rotation_loops_agree() -> None:
+    model = _model().eval()
+    gen = model.motion_gen
+    z, action, end = _inputs(3)
+    with torch.no_grad():
+        cond = model.condition(z, action)
+        state, const = gen._context(model.traj_gen(cond, end), cond)
+        args = (const, state[0], state[1], *gen._step_weights(), gen.fk_offsets, *gen._fk_levels())
+        eager = generator_module._free_run_fk_loop(*args)
+        compiled = generator_module._compiled(generator_module._free_run_fk_loop)(*args)
+    assert isinstance(
+        generator_module._compiled(generator_module._free_run_fk_loop), torch.jit.ScriptFunction
+    )
+    for a, b in zip(compiled, eager, strict=True):
+        torch.testing.assert_close(a, b, atol=1e-6, rtol=1e-6)
