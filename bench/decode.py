@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import argparse
 import copy
+import dataclasses
 import statistics
 import sys
 import time
@@ -292,7 +293,7 @@ def _reduced_precision(repeats: int) -> list[dict[str, object]]:
 
 
 def _kinematics(skeleton: Skeleton, config: OdmoConfig, rng: np.random.Generator) -> list[dict[str, object]]:
-    """Time the bone projection, the foot clean-up and, for comparison, torch FK of 6D local rotations."""
+    """Time the bone projection, the foot clean-up and torch FK of 6D local rotations."""
     rows = []
     projection = BoneProjection(skeleton)
     offsets = torch.tensor(np.array(skeleton.offsets), dtype=torch.float32)
@@ -309,7 +310,7 @@ def _kinematics(skeleton: Skeleton, config: OdmoConfig, rng: np.random.Generator
         with torch.inference_mode():
             stages = {
                 "bone projection (FK of bone directions, in the decoder)": lambda j=joints: projection(j),
-                "torch FK of 6D local rotations (not used; for comparison)": lambda d=d6, r=root: (
+                "torch FK of 6D local rotations, every frame at once": lambda d=d6, r=root: (
                     forward_kinematics(rotation_6d_to_matrix(d), offsets, skeleton.parents, r)
                 ),
                 "foot clean-up (plant_feet, half the foot frames planted)": lambda p=positions, c=contact: (
@@ -319,6 +320,31 @@ def _kinematics(skeleton: Skeleton, config: OdmoConfig, rng: np.random.Generator
             for name, fn in stages.items():
                 seconds = _timed(fn, repeats)
                 rows.append({"what": f"stage: {name}", "batch": batch, "ms": round(seconds * 1e3, 2)})
+    return rows
+
+
+def _rotation_decodes(
+    config: OdmoConfig, skeleton: Skeleton, rng: np.random.Generator, repeats: int
+) -> list[dict]:
+    """Time OdmoModel.decode of a rotation decoder (``pose_output`` "rotations": forward kinematics every
+    frame of its free run) at batch 1 and 1024."""
+    model = OdmoModel(dataclasses.replace(config, pose_output="rotations"), seed=0).eval()
+    model.attach_skeleton(skeleton)
+    rows: list[dict[str, object]] = []
+    for batch in (1, 1024):
+        z = torch.as_tensor(rng.standard_normal((batch, config.latent_dim)), dtype=torch.float32)
+        a = torch.as_tensor(rng.integers(0, N_ACTIONS, batch))
+        e = torch.as_tensor(rng.standard_normal((batch, 3)), dtype=torch.float32)
+
+        def run(z=z, a=a, e=e) -> None:
+            with torch.inference_mode():
+                model.decode(z, a, e)
+
+        seconds = _timed(run, max(3, repeats // max(1, batch // 16)))
+        what = "OdmoModel.decode, pose_output rotations (FK every frame; inference_mode)"
+        rows.append(
+            {"what": what, "batch": batch, "ms": round(seconds * 1e3, 2), "motions/s": round(batch / seconds)}
+        )
     return rows
 
 
@@ -341,7 +367,8 @@ def main(argv: list[str] | None = None) -> int:
         rng = np.random.default_rng(0)
         part = _decodes(loaded, rng, args.repeats) + _plain_modules(loaded, rng, args.repeats)
         part += _stages(model, rng, config)
-        part += _kinematics(skeleton, config, rng) + _reduced_precision(args.repeats)
+        part += _kinematics(skeleton, config, rng) + _rotation_decodes(config, skeleton, rng, args.repeats)
+        part += _reduced_precision(args.repeats)
         rows += [{"threads": threads} | row for row in part]
     for row in rows:
         print(row)
