@@ -117,6 +117,7 @@ COLUMNS = (
     ("Heading (°) →", "heading_error_deg", 1),
     ("Torso twist (°) →", "torso_twist_deg", 1),
     ("Foot sync (r) →", "foot_sync", 2),
+    ("Feet backward ↓", "feet_backward", 3),
     ("Joint range ↓", "joint_range_excess", 3),
 )
 # The unconditional table (MoDi): (header, metric key, decimals).

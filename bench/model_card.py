@@ -37,10 +37,12 @@ METRICS = (
     ("heading_error_deg", "Heading: body's facing line against its direction of travel (degrees)"),
     ("torso_twist_deg", "Torso twist: shoulders' axis against the hips' (degrees, mean absolute)"),
     ("foot_sync", "Foot sync: correlation of the two ankles' velocities (−: alternating, +1: a hop)"),
+    ("feet_backward", "Planted feet pointing against the direction of travel (share of moving spans)"),
     ("joint_range_excess", "Joint rotations outside 99 % of real ones (share of frame × joint)"),
 )
 SKATE_FLOOR = 0.02  # m/s: the planted-foot target for actions that stand still
 SYNC_TOL = 0.3  # foot sync (a correlation) a gait may differ from real's: walks −0.4 to −0.65, a hop +1
+BACKWARD_TOL = 0.05  # share of planted feet pointing against travel a model may add to real's (0–0.1 %)
 STEP_SPEED = 0.1  # m/s: real feet slower than this on average do not step, so have no gait to alternate
 
 
@@ -117,6 +119,10 @@ def physics_targets(report: dict[str, Any]) -> list[str]:
                 mean(r, "foot_speed_m_s") < STEP_SPEED
                 or abs(mean(g, "foot_sync") - mean(r, "foot_sync")) <= SYNC_TOL
             )
+        ),
+        "feet pointing the way they go (feet backward at most 5 points above real where real ones travel; "
+        "this project's)": lambda g, r: (
+            not mean(r, "feet_backward") < mean(g, "feet_backward") - BACKWARD_TOL
         ),
     }
     lines = []

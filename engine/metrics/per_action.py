@@ -31,6 +31,7 @@ PER_ACTION_COLUMNS = (
     PerActionColumn("heading_error_deg", "heading", "heading (°)", "{:.1f}"),
     PerActionColumn("torso_twist_deg", "twist", "twist (°)", "{:.1f}"),
     PerActionColumn("foot_sync", "foot sync", "foot sync (r)", "{:+.2f}"),
+    PerActionColumn("feet_backward", "feet back", "feet backward", "{:.0%}"),
     PerActionColumn("joint_range_excess", "joint range", "joint range", "{:.0%}"),
 )
 

@@ -21,6 +21,11 @@ alternates its feet (real Bandai walks −0.4 to −0.65, runs −0.6 to −0.9;
 towards 0), +1 is both feet moving together, a hop. Clips where an ankle does not move relative to the
 pelvis are left out.
 
+Feet backward (``feet_backward``): over the moving spans of the heading rule, the share of (span, foot)
+pairs whose foot is planted (its toe joint within ``PLANTED_TOL`` of the clip's lowest foot height, at the
+span's middle) and points against the direction of travel (the ankle-to-toe bone seen from above): real
+gaits put their feet down pointing the way they go; a decoder that turns the feet round does not.
+
 Torso twist (``torso_twist``): the angle, seen from above, between the axis through the tops of the two
 arms (the shoulders) and the axis through the two hips, in every frame (real Bandai walks: 6.8° mean
 absolute, one clip per style, from 2.2° elderly to 13.7° active; waves about 1°).
@@ -32,7 +37,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from engine.motion.contact import ankle_pair, foot_joints, hand_joints, hip_pair, shoulder_pair
+from engine.motion.contact import ankle_pair, foot_joints, hand_joints, hip_pair, leg_chains, shoulder_pair
 from engine.motion.skeleton import Skeleton
 
 PLANTED_TOL = 0.03
@@ -121,20 +126,45 @@ def mean_jerk(joints: np.ndarray, fps: float) -> float:
     return float(np.linalg.norm(np.diff(pos, n=3, axis=0), axis=-1).mean() * fps**3)
 
 
+def _moving_spans(pos: np.ndarray, root: int, fps: float) -> tuple[np.ndarray, np.ndarray]:
+    """The horizontal travel (S, 2) of ``root`` over every span of ``HEADING_SPAN`` in one clip (T, J, 3)
+    and the poses (S, J, 3) at the spans' middles, for the spans moving at ``MOVING_SPEED`` or more."""
+    span = max(1, round(HEADING_SPAN * fps))
+    if len(pos) <= span:
+        return np.zeros((0, 2)), pos[:0]
+    travel = pos[span:, root, ::2] - pos[:-span, root, ::2]
+    middle = pos[span // 2 : span // 2 + len(travel)]
+    moving = np.linalg.norm(travel, axis=-1) >= MOVING_SPEED * span / fps
+    return travel[moving], middle[moving]
+
+
 def heading_errors(joints: np.ndarray, hips: tuple[int, int], root: int, fps: float) -> np.ndarray:
     """Angles (degrees, 0..90) between the body's facing line and its direction of travel in one clip,
     one per moving span (see the module docstring): 0 walking forwards or backwards, 90 side-stepping."""
-    pos = np.asarray(joints, dtype=np.float64)
-    span = max(1, round(HEADING_SPAN * fps))
-    if len(pos) <= span:
-        return np.zeros(0)
-    travel = pos[span:, root, ::2] - pos[:-span, root, ::2]
-    middle = pos[span // 2 : span // 2 + len(travel)]
+    travel, middle = _moving_spans(np.asarray(joints, dtype=np.float64), root, fps)
     axis = middle[:, hips[0], ::2] - middle[:, hips[1], ::2]
     norms = np.linalg.norm(travel, axis=-1) * np.linalg.norm(axis, axis=-1)
-    moving = (np.linalg.norm(travel, axis=-1) >= MOVING_SPEED * span / fps) & (norms > 0)
-    cos = np.abs(np.einsum("ti,ti->t", travel, axis))[moving] / norms[moving]
+    cos = np.abs(np.einsum("ti,ti->t", travel, axis))[norms > 0] / norms[norms > 0]
     return np.degrees(np.arcsin(np.clip(cos, 0.0, 1.0)))
+
+
+def feet_backward(
+    clips: Sequence[np.ndarray], feet: Sequence[tuple[int, int]], root: int, fps: float
+) -> float:
+    """Share of (moving span, foot) pairs whose planted foot points against the direction of travel (see
+    the module docstring); ``feet`` are (ankle, toe) joint pairs. NaN when no span moves with a foot
+    planted."""
+    backward = counted = 0
+    for clip in clips:
+        pos = np.asarray(clip, dtype=np.float64)
+        floor = pos[:, [j for pair in feet for j in pair], 1].min(initial=np.inf)
+        travel, middle = _moving_spans(pos, root, fps)
+        for ankle, toe in feet:
+            bone = middle[:, toe, ::2] - middle[:, ankle, ::2]
+            planted = (middle[:, toe, 1] <= floor + PLANTED_TOL) & (np.linalg.norm(bone, axis=-1) > 0)
+            backward += int(np.sum(planted & (np.einsum("ti,ti->t", bone, travel) < 0)))
+            counted += int(np.sum(planted))
+    return backward / counted if counted else float("nan")
 
 
 def heading_error(clips: Sequence[np.ndarray], hips: tuple[int, int], root: int, fps: float) -> float:
@@ -203,4 +233,8 @@ def physics_metrics(clips: Sequence[np.ndarray], skeleton: Skeleton, fps: float)
         out["torso_twist_deg"] = torso_twist(clips, hips, shoulders)
     if ankles is not None and hips is not None:
         out["foot_sync"] = foot_sync(clips, ankles, int(skeleton.parents[hips[0]]))
+    toes = [(ankle, below[0]) for _, _, ankle, below in leg_chains(skeleton) if below]
+    backward = feet_backward(clips, toes, int(skeleton.parents[hips[0]]), fps) if toes and hips else np.nan
+    if np.isfinite(backward):  # left out where nothing travels with a foot down
+        out["feet_backward"] = backward
     return out

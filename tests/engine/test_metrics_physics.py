@@ -312,3 +312,47 @@ def _below(parents: np.ndarray, j: int, ancestor: int) -> bool:
             return True
         j = int(parents[j])
     return False
+
+
+def _stepping(toes_forward: bool, frames: int = 41) -> np.ndarray:
+    """(frames, 3, 3): a root walking along +z at 1 m/s, an ankle 10 cm up and its toe on the floor 12 cm
+    ahead of it (or behind), planted for the first half of each second and lifted 20 cm for the rest."""
+    t = np.arange(frames) / FPS
+    clip = np.zeros((frames, 3, 3))
+    clip[:, :, 2] = t[:, None]
+    lifted = (t % 1.0) >= 0.5
+    clip[:, 1, 1] = 0.1 + 0.2 * lifted
+    clip[:, 2, 1] = 0.2 * lifted
+    clip[:, 2, 2] += 0.12 if toes_forward else -0.12
+    return clip
+
+
+def test_feet_backward_counts_planted_feet_pointing_against_travel() -> None:
+    forward, backward = _stepping(True), _stepping(False)
+    assert physics.feet_backward([forward], [(1, 2)], 0, FPS) == 0.0
+    assert physics.feet_backward([backward], [(1, 2)], 0, FPS) == 1.0
+    assert physics.feet_backward([forward, backward], [(1, 2)], 0, FPS) == pytest.approx(0.5)
+    swung = backward.copy()
+    swung[:, 2, 2] = forward[:, 2, 2]
+    lifted = swung[:, 2, 1] > 0.1
+    swung[lifted, 2, 2] = backward[lifted, 2, 2]  # backwards only while in the air: not counted
+    assert physics.feet_backward([swung], [(1, 2)], 0, FPS) == 0.0
+    standing = forward.copy()
+    standing[:, :, 2] -= np.arange(len(standing))[:, None] / FPS  # the same feet, no travel
+    assert np.isnan(physics.feet_backward([standing], [(1, 2)], 0, FPS))
+
+
+def test_real_gaits_put_their_feet_down_pointing_forwards(bandai_dir) -> None:
+    paths = sorted((bandai_dir / "data").glob("dataset-2_walk_*_00[12].bvh"))
+    paths += sorted((bandai_dir / "data").glob("dataset-2_run_*_00[12].bvh"))
+    clips = [read_motion(p) for p in paths]
+    skel = clips[0].skeleton
+    row = physics.physics_metrics([c.joints for c in clips], skel, clips[0].fps)
+    assert row["feet_backward"] < 0.01
+    turned = []  # every foot turned round about its ankle, seen from above
+    for clip in clips:
+        joints = clip.joints.copy()
+        for _, _, ankle, below in leg_chains(skel):
+            joints[:, below, ::2] = 2 * joints[:, ankle : ankle + 1, ::2] - joints[:, below, ::2]
+        turned.append(joints)
+    assert physics.physics_metrics(turned, skel, clips[0].fps)["feet_backward"] > 0.99

@@ -33,3 +33,18 @@ def test_feet_are_judged_on_alternation_only_where_real_feet_step() -> None:
     assert feet.endswith("3/4 actions — missed (walk).")
     assert lines["- mean hand speed ≥ 0.8× real"].endswith("3/4 actions — missed (raise).")
     assert lines["- worst-bone length variation ≤ 1 %"].endswith("4/4 actions — met.")
+
+
+def test_feet_pointing_backwards_are_judged_against_real_where_real_ones_travel() -> None:
+    walk, run, wave = (
+        _action((-0.6, -0.6), (1.2, 1.3)),
+        _action((-0.8, -0.85), (2.7, 3.0)),
+        _action((0.9, 0.96), (0, 0)),
+    )
+    walk["generated"] |= _side(feet_backward=0.99)  # the bundled model's walks: their feet turned round
+    walk["real"] |= _side(feet_backward=0.001)
+    run["generated"] |= _side(feet_backward=0.04)  # within 5 points of real
+    run["real"] |= _side(feet_backward=0.0)
+    lines = physics_targets({"per_action": {"walk": walk, "run": run, "wave": wave}})  # waves do not travel
+    feet = next(line for line in lines if line.startswith("- feet pointing the way they go"))
+    assert feet.endswith("2/3 actions — missed (walk).")
