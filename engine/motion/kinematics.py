@@ -146,11 +146,12 @@ def fk_levels(parents: tuple[int, ...]) -> FkLevels:
     levels = [[j for j in range(len(parents)) if depth[j] == d] for d in range(max(depth, default=-1) + 1)]
     slots = [[above.index(parents[j]) for j in joints] for above, joints in itertools.pairwise(levels)]
     order = [j for level in levels for j in level]
-    return FkLevels(
-        [torch.tensor(level) for level in levels],
-        [torch.tensor(slot) for slot in slots],
-        torch.tensor([order.index(j) for j in range(len(parents))]),
-    )
+    with torch.inference_mode(False):  # cached: ordinary tensors, which autograd may save, wherever built
+        return FkLevels(
+            [torch.tensor(level) for level in levels],
+            [torch.tensor(slot) for slot in slots],
+            torch.tensor([order.index(j) for j in range(len(parents))]),
+        )
 
 
 def walk_tree(

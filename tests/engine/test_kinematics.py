@@ -121,3 +121,14 @@ def test_forward_kinematics_places_every_root_at_the_root_position() -> None:
     local = torch.eye(3).expand(4, 3, 3)
     got = forward_kinematics(local, offsets, parents, torch.tensor([5.0, 0, 0]))
     np.testing.assert_allclose(got.numpy(), [[5, 0, 0], [6, 0, 0], [5, 0, 0], [5, 2, 0]])
+
+
+def test_fk_levels_built_under_inference_mode_still_train() -> None:
+    """The depth levels are cached: first built under inference_mode, they must still serve autograd."""
+    parents = (-1, 0, 1, 1, 0)  # a tree no other test builds, so this call fills the cache
+    offsets = torch.tensor([[0.0, 0, 0], [0, 1, 0], [0, 1, 0], [1, 0, 0], [0, -1, 0]])
+    with torch.inference_mode():
+        forward_kinematics(torch.eye(3).repeat(5, 1, 1), offsets, np.array(parents), torch.zeros(3))
+    local = torch.eye(3).repeat(5, 1, 1).requires_grad_()
+    forward_kinematics(local, offsets, np.array(parents), torch.zeros(3)).sum().backward()
+    assert local.grad is not None
