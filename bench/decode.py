@@ -125,24 +125,7 @@ def _decodes(loaded: LoadedModel, rng: np.random.Generator, repeats: int) -> lis
             "motions/s": round(1 / one),
         }
     ]
-    for batch in (1, 2, 64, 1024):
-        z = torch.as_tensor(rng.standard_normal((batch, config.latent_dim)), dtype=torch.float32)
-        a = torch.as_tensor(rng.integers(0, N_ACTIONS, batch))
-        e = torch.as_tensor(rng.standard_normal((batch, 3)), dtype=torch.float32)
-
-        def run(z=z, a=a, e=e) -> None:
-            with torch.inference_mode():
-                model.decode(z, a, e)
-
-        seconds = _timed(run, max(3, repeats // max(1, batch // 16)))
-        rows.append(
-            {
-                "what": "OdmoModel.decode (inference_mode)",
-                "batch": batch,
-                "ms": round(seconds * 1e3, 2),
-                "motions/s": round(batch / seconds),
-            }
-        )
+    rows += _model_decodes(model, "OdmoModel.decode (inference_mode)", (1, 2, 64, 1024), rng, repeats)
     codes = rng.standard_normal((1024, config.latent_dim)).astype(np.float32)
     actions, ends = rng.integers(0, N_ACTIONS, 1024), rng.standard_normal((1024, 3)).astype(np.float32)
     seconds = _timed(lambda: decode_array(loaded, codes, actions, ends), 3)
@@ -323,16 +306,13 @@ def _kinematics(skeleton: Skeleton, config: OdmoConfig, rng: np.random.Generator
     return rows
 
 
-def _rotation_decodes(
-    config: OdmoConfig, skeleton: Skeleton, rng: np.random.Generator, repeats: int
-) -> list[dict]:
-    """Time OdmoModel.decode of a rotation decoder (``pose_output`` "rotations": forward kinematics every
-    frame of its free run) at batch 1 and 1024."""
-    model = OdmoModel(dataclasses.replace(config, pose_output="rotations"), seed=0).eval()
-    model.attach_skeleton(skeleton)
+def _model_decodes(
+    model: OdmoModel, what: str, batches: tuple[int, ...], rng: np.random.Generator, repeats: int
+) -> list[dict[str, object]]:
+    """Time ``model.decode`` of random codes, actions and ends under inference_mode at each batch size."""
     rows: list[dict[str, object]] = []
-    for batch in (1, 1024):
-        z = torch.as_tensor(rng.standard_normal((batch, config.latent_dim)), dtype=torch.float32)
+    for batch in batches:
+        z = torch.as_tensor(rng.standard_normal((batch, model.config.latent_dim)), dtype=torch.float32)
         a = torch.as_tensor(rng.integers(0, N_ACTIONS, batch))
         e = torch.as_tensor(rng.standard_normal((batch, 3)), dtype=torch.float32)
 
@@ -341,11 +321,21 @@ def _rotation_decodes(
                 model.decode(z, a, e)
 
         seconds = _timed(run, max(3, repeats // max(1, batch // 16)))
-        what = "OdmoModel.decode, pose_output rotations (FK every frame; inference_mode)"
         rows.append(
             {"what": what, "batch": batch, "ms": round(seconds * 1e3, 2), "motions/s": round(batch / seconds)}
         )
     return rows
+
+
+def _rotation_decodes(
+    config: OdmoConfig, skeleton: Skeleton, rng: np.random.Generator, repeats: int
+) -> list[dict]:
+    """Time OdmoModel.decode of a rotation decoder (``pose_output`` "rotations": forward kinematics every
+    frame of its free run) at batch 1 and 1024."""
+    model = OdmoModel(dataclasses.replace(config, pose_output="rotations"), seed=0).eval()
+    model.attach_skeleton(skeleton)
+    what = "OdmoModel.decode, pose_output rotations (FK every frame; inference_mode)"
+    return _model_decodes(model, what, (1, 1024), rng, repeats)
 
 
 def main(argv: list[str] | None = None) -> int:
