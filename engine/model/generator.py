@@ -13,7 +13,7 @@ import torch
 import torch.nn.functional as F  # noqa: N812
 from torch import Tensor, nn
 
-from engine.motion.kinematics import FkLevels, fk_levels, forward_kinematics, rotation_6d_to_matrix, walk_tree
+from engine.motion.kinematics import FkLevels, fk_levels, rotation_6d_to_matrix, walk_tree
 from engine.motion.skeleton import Skeleton
 
 logger = logging.getLogger(__name__)
@@ -197,11 +197,10 @@ class MotionGenerator(nn.Module):
         ``rotations`` the forward kinematics of their 6D local rotations, root at the origin."""
         if not self.rotations:
             return out
-        if self.fk_parents is None:
-            raise RuntimeError("a rotation decoder needs attach_skeleton before it decodes")
+        levels = self._fk_levels()
         local = rotation_6d_to_matrix(out.unflatten(-1, (self.n_joints, 6)))
         origin = out.new_zeros(*out.shape[:-1], 3)
-        return forward_kinematics(local, self.fk_offsets, self.fk_parents, origin).flatten(-2)
+        return walk_tree(local, self.fk_offsets.to(local), origin, *levels).flatten(-2)
 
     def _context(self, trajectory: Tensor, cond: Tensor) -> tuple[tuple[Tensor, Tensor], Tensor]:
         """Decoder initial state from ``trajectory`` (B, T, 3) and the pose-free input term (B, T, H).
