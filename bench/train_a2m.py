@@ -36,6 +36,7 @@ from engine.metrics.classifier import load_classifier
 from engine.model.a2m import A2mConfig
 from engine.motion.datasets import load_folder
 from engine.train.a2m_loop import train_a2m
+from engine.train.kind_run import WarmStart
 
 ROOT = Path(__file__).resolve().parents[1]
 DEFAULT_OUT = ROOT / "resources" / "models" / "bandai2-a2m"
@@ -52,6 +53,10 @@ def parse_args() -> argparse.Namespace:
     p.add_argument("--pose-rep", default="lie", choices=("lie", "joints"))
     p.add_argument("--epochs", type=int, default=100)
     p.add_argument("--lr", type=float, default=1e-3)
+    p.add_argument("--lr-floor", type=float, default=1.0, help="cosine learning-rate floor (1: constant)")
+    p.add_argument(
+        "--warm-start", type=Path, help="start from this A2M model folder's weights (trained on this split)"
+    )
     p.add_argument("--kl-weight", type=float, default=0.001)
     p.add_argument("--trajectory-weight", type=float, default=0.8)
     p.add_argument("--seed", type=int, default=0)
@@ -80,6 +85,7 @@ def main() -> int:
         pose_rep=args.pose_rep,
         epochs=args.epochs,
         lr=args.lr,
+        lr_floor=args.lr_floor,
         kl_weight=args.kl_weight,
         trajectory_weight=args.trajectory_weight,
     )
@@ -100,6 +106,7 @@ def main() -> int:
             device=args.device,
             resume=args.resume,
             progress=show,
+            warm_start=None if args.warm_start is None else warm_start(args.warm_start, test_clips),
         )
         summary = {
             "train_seconds": result.train_seconds,
@@ -136,9 +143,21 @@ def main() -> int:
     atomic_write_text(out / "eval.json", json.dumps(shipped, indent=2))  # no machine paths in what ships
     trained = load_a2m(work)
     summary["windows_seen"] = trained.provenance["windows_seen"]
+    summary["warm_start"] = trained.provenance.get("warm_start")
     card = model_card(report, trained.config, summary, sys.argv[1:], len(test_clips), dataset.fingerprint)
     atomic_write_text(out / "MODEL_CARD.md", card)
     return 0
+
+
+def warm_start(folder: Path, test_clips: list) -> WarmStart:
+    """The weights of the A2M model in ``folder``; SystemExit if it trained on a held-out clip."""
+    loaded = load_a2m(folder, with_bank=False)
+    made = loaded.provenance
+    held_out = {Path(c.meta["source"]).name for c in test_clips}
+    if held_out & {Path(s).name for s in made.get("train_sources", [])}:
+        raise SystemExit(f"{folder}: that model trained on held-out clips; it cannot be warm-started from")
+    source = {k: made[k] for k in ("epochs", "windows_seen", "seed", "created") if k in made}
+    return WarmStart(loaded.model.state_dict(), {"model": folder.name, **source})
 
 
 def model_card(
@@ -212,12 +231,13 @@ def model_card(
         f"batch {config.batch_size}) in {summary['train_seconds'] / 60:.0f} min of CPU training on "
         f"{summary['torch_threads']} torch thread ({platform.processor() or platform.machine()}, a machine "
         "shared with other jobs).",
+        *warm_start_line(summary.get("warm_start")),
         f"- Settings: hidden {config.hidden}, z {config.latent_dim} per frame, {config.gen_layers}-layer "
         f"generator GRU, window {config.window} frames at {config.fps:g} fps; λ_KL {config.kl_weight:g}, "
         f"λ_trajec {config.trajectory_weight:g} (the released HumanAct12 configuration; the paper's "
         f"text says λ = 0.01), teacher forcing p {config.tf_rate:g} per batch, Adam lr {config.lr:g} "
-        f"(the paper's 2e-4 raised for the CPU budget), weight decay {config.weight_decay:g}; code space "
-        f"{config.code_dim}-d.",
+        f"(the paper's 2e-4 raised for the CPU budget{lr_decay(config)}), weight decay "
+        f"{config.weight_decay:g}; code space {config.code_dim}-d.",
         f"- Data: Bandai-Namco-Research-Motiondataset-2, {summary['n_train']} training and "
         f"{summary['n_val']} validation clips (the held-out clips are never seen); prepared-data "
         f"fingerprint `{fingerprint[:16]}`.",
@@ -231,6 +251,22 @@ def model_card(
         "",
     ]
     return "\n".join(lines)
+
+
+def warm_start_line(source: dict[str, Any] | None) -> list[str]:
+    """The card's line on the weights the run started from, if any."""
+    if not source:
+        return []
+    before = f"{source['epochs']} epochs, {source['windows_seen']:,} windows" if "epochs" in source else "?"
+    return [
+        f"- Started from the weights of `{source['model']}` ({before}, trained on the same split); the "
+        "budget above is this run's alone."
+    ]
+
+
+def lr_decay(config: A2mConfig) -> str:
+    """How the learning rate falls, for the card (nothing when it is constant)."""
+    return "" if config.lr_floor >= 1 else f", falling along a cosine to {config.lr * config.lr_floor:g}"
 
 
 if __name__ == "__main__":

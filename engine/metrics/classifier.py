@@ -25,6 +25,7 @@ from engine.errors import CancelledError, ConfigError, DataError, ModelFormatErr
 from engine.fileio import atomic_write_bytes, atomic_write_text
 from engine.metrics.accuracy import recognition_accuracy
 from engine.motion.motion import Motion
+from engine.train.epochs import cosine_lr
 from engine.train.pairs import split_clips
 from engine.train.windows import PreparedClips, every_window, prepare_clips, windows_at
 
@@ -165,13 +166,6 @@ class Classifier:
     def n_inputs(self) -> int:
         """Values per frame, J·3."""
         return self.config.n_joints * 3
-
-
-def cosine_lr(base: float, epoch: int, epochs: int, floor: float = 0.05) -> float:
-    """Learning rate of ``epoch`` (0-based): cosine from ``base`` down to ``floor`` · base at the last."""
-    if epochs <= 1:
-        return base
-    return base * (floor + (1.0 - floor) * 0.5 * (1.0 + math.cos(math.pi * epoch / (epochs - 1))))
 
 
 def held_out_accuracy(

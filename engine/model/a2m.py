@@ -45,6 +45,8 @@ class A2mConfig(ModelConfig):
     the loss weights are those of the released HumanAct12 configuration (λ_KL = 0.001, λ_trajec = 0.8;
     the paper's text says λ = 0.01, see the README). Epochs are of ``epoch_size`` class-balanced windows,
     like ODMO's, so budgets compare. ``code_dim``: size of the code space (0: none, sampling only).
+    ``lr_floor`` < 1 lowers the learning rate along a cosine to lr · lr_floor at the last epoch (1, the
+    paper's: constant).
     """
 
     n_actions: int
@@ -59,6 +61,7 @@ class A2mConfig(ModelConfig):
     trajectory_weight: float = 0.8
     tf_rate: float = 0.6
     lr: float = 2e-4
+    lr_floor: float = 1.0
     weight_decay: float = 1e-5
     batch_size: int = 128
     epoch_size: int = 2048
@@ -70,7 +73,7 @@ class A2mConfig(ModelConfig):
     POSITIVE = ("n_actions", "n_joints", "window", "fps", "hidden", "latent_dim", "gen_layers", "lr")
     POSITIVE += ("batch_size", "epoch_size", "grad_clip")
     NON_NEGATIVE = ("kl_weight", "trajectory_weight", "weight_decay", "epochs", "code_dim")
-    RATES = ("tf_rate",)
+    RATES = ("tf_rate", "lr_floor")
     CHOICES: ClassVar[dict[str, tuple[str, ...]]] = {"pose_rep": POSE_REPS}
     ARCH = "a2m"
     BEFORE = _BEFORE

@@ -18,10 +18,11 @@ from engine.train.epochs import (
     TrainProgress,
     TrainResult,
     clipped_step,
+    cosine_lr,
     root_height,
     split_metas,
 )
-from engine.train.kind_run import KindRun, RunOptions
+from engine.train.kind_run import KindRun, RunOptions, WarmStart
 from engine.train.pairs import PairSampler
 from engine.train.rest_pose import mean_local_rotations
 from engine.train.windows import PreparedClips, WindowBatch, crop_windows
@@ -69,7 +70,10 @@ class A2mSteps:
         self.batches = self.teacher_batches = 0
 
     def step(self, epoch: int, rng: np.random.Generator, generator: torch.Generator) -> dict[str, float]:
-        """One Adam step on a fresh batch, teacher-forced or free-running by a coin flip."""
+        """One Adam step on a fresh batch, teacher-forced or free-running by a coin flip, at the epoch's
+        learning rate."""
+        for group in self.optimizer.param_groups:
+            group["lr"] = cosine_lr(self.config.lr, epoch, self.config.epochs, self.config.lr_floor)
         anchors, _ = self.sampler.anchors(self.config.batch_size, rng)
         batch = crop_windows(self.prepared, anchors, rng)
         teacher = bool(rng.random() < self.config.tf_rate)
@@ -164,6 +168,7 @@ def train_a2m(
     checkpoint_every: int = 10,
     bank_projections: Sequence[str] = ("pca", "tsne", "umap"),
     bank_k_range: tuple[int, int] = (3, 11),
+    warm_start: WarmStart | None = None,
 ) -> TrainResult:
     """Train an A2M baseline on ``clips`` and write its model folder ``out_dir``.
 
@@ -172,7 +177,8 @@ def train_a2m(
     ``config.tf_rate``, else the generator runs on its own outputs. A "lie" model runs on the data's
     skeleton and starts at its mean pose. The folder gets model.safetensors, model.json, train_log.csv,
     checkpoints/last.pt and, with a code space, latent_bank.npz (``bank_projections`` maps, modes over
-    ``bank_k_range``); ``resume`` and ``cancel`` behave as in ``train``.
+    ``bank_k_range``); ``resume`` and ``cancel`` behave as in ``train``. With ``warm_start`` the model
+    starts from those weights (a checkpoint to resume from still wins) and the provenance names them.
     """
     out = Path(out_dir)
     options = RunOptions(seed, device, resume, val_fraction, progress, cancel, checkpoint_every)
@@ -182,12 +188,14 @@ def train_a2m(
     if config.pose_rep == "lie":
         model.set_skeleton(prepared.skeleton)
         model.set_rest_bias(mean_local_rotations(prepared, train_idx).as_rotvec())
+    if warm_start is not None:
+        warm_start.load_into(model)
     model = model.to(data.device)
     validation = crop_windows(prepared, data.val_idx, None) if len(data.val_idx) else None
     run = data.train(A2mSteps(model, prepared, train_idx, validation), out, config)
     if config.code_dim:
         fit_code_space(model, prepared, train_idx)
-    made = data.provenance(run, config)
+    made = data.provenance(run, config, **({} if warm_start is None else {"warm_start": warm_start.source}))
     height = root_height(prepared)
     write_model_folder(
         out, model, config.to_dict(), prepared.skeleton, prepared.action_names, made, height, "a2m"

@@ -29,6 +29,13 @@ log = logging.getLogger(__name__)
 LOG_FILE = "train_log.csv"
 
 
+def cosine_lr(base: float, epoch: int, epochs: int, floor: float = 0.05) -> float:
+    """Learning rate of ``epoch`` (0-based): cosine from ``base`` down to ``floor`` · base at the last."""
+    if epochs <= 1:
+        return base
+    return base * (floor + (1.0 - floor) * 0.5 * (1.0 + math.cos(math.pi * epoch / (epochs - 1))))
+
+
 class EpochSteps(Protocol):
     """One kind's training step: what ``run_epochs`` calls, checkpoints and logs."""
 

@@ -4,7 +4,7 @@ config, the split of the clips, the epoch loop, and the provenance and result of
 from __future__ import annotations
 
 import platform
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from datetime import UTC, datetime
 from pathlib import Path
@@ -45,6 +45,24 @@ class RunOptions:
     cancel: Callable[[], bool] | None = None
     checkpoint_every: int = 10
     ranks: Ranks = SINGLE
+
+
+@dataclass(frozen=True)
+class WarmStart:
+    """Weights a run starts from instead of its initialisation: a saved model's ``state`` (every tensor
+    the model holds) and ``source``, what the provenance records of where they came from."""
+
+    state: Mapping[str, torch.Tensor]
+    source: dict[str, Any]
+
+    def load_into(self, model: torch.nn.Module) -> None:
+        """Copy the state into ``model``; ConfigError when its tensors are not the model's."""
+        try:
+            model.load_state_dict(dict(self.state))
+        except RuntimeError as error:
+            first = str(error).strip().splitlines()[-1].strip()
+            name = self.source.get("model", "those weights")
+            raise ConfigError(f"cannot start from {name}: {first}") from None
 
 
 @dataclass

@@ -24,7 +24,8 @@ from engine.model.a2m import A2mConfig, A2mModel, so3_exp
 from engine.modelio import load_model, write_model_folder
 from engine.motion.ik import joints_to_rotations
 from engine.motion.motion import Motion
-from engine.train.a2m_loop import posterior_means, train_a2m
+from engine.train.a2m_loop import A2mSteps, posterior_means, train_a2m
+from engine.train.kind_run import WarmStart
 from engine.train.windows import prepare_clips
 from tests.fixtures.procedural import PROCEDURAL_ACTIONS, procedural_skeleton
 from tests.fixtures.tiny_model import single_thread, tiny_a2m_config
@@ -378,3 +379,40 @@ def test_results_show_the_per_action_figures_of_the_bundled_odmo_row_and_the_a2m
     assert [e["row"] for e in per_action_entries(entries[2:])] == ["a2m"]
     assert [e["row"] for e in per_action_entries(entries[3:])] == ["a2m_no_lie"]
     assert per_action_entries([{"row": "a2m", "generated": {}}]) == []
+
+
+def test_learning_rate_falls_along_its_cosine_to_the_floor(
+    procedural_clips: list[Motion], torch_single_thread: None
+) -> None:
+    config = tiny_a2m_config(epochs=3, lr=1e-3, lr_floor=0.1)
+    prepared = prepare_clips(procedural_clips, PROCEDURAL_ACTIONS, config.fps, config.window)
+    model = A2mModel(config, seed=0)
+    model.set_skeleton(prepared.skeleton)
+    steps = A2mSteps(model, prepared, np.arange(prepared.n_clips), None)
+    rates = []
+    for epoch in range(3):
+        steps.step(epoch, np.random.default_rng(0), torch.Generator().manual_seed(0))
+        rates.append(steps.optimizer.param_groups[0]["lr"])
+    assert rates == pytest.approx([1e-3, 0.55e-3, 1e-4])  # halfway down the cosine at the middle epoch
+    assert A2mConfig.from_dict(tiny_a2m_config().to_dict() | {"lr_floor": 1.0}).lr_floor == 1.0
+    with pytest.raises(ConfigError, match="lr_floor"):
+        tiny_a2m_config(lr_floor=1.5)
+
+
+def test_warm_start_begins_from_the_saved_weights_and_names_them(
+    a2m_dir: Path, procedural_clips: list[Motion], tmp_path: Path, torch_single_thread: None
+) -> None:
+    source = load_a2m(a2m_dir).model.state_dict()
+    warm = WarmStart(source, {"model": a2m_dir.name, "epochs": 8})
+    config = tiny_a2m_config(epochs=1, epoch_size=16, lr=1e-12)  # one step that cannot move the weights
+    train_a2m(procedural_clips, PROCEDURAL_ACTIONS, tmp_path / "warm", config, device="cpu", warm_start=warm)
+    trained = load_a2m(tmp_path / "warm")
+    weights = {k: v for k, v in trained.model.state_dict().items() if not k.startswith("code_")}
+    assert weights and all(torch.allclose(v, source[k], atol=1e-7) for k, v in weights.items())
+    assert trained.provenance["warm_start"] == {"model": a2m_dir.name, "epochs": 8}
+    assert trained.provenance["epochs"] == 1
+    wider = WarmStart(load_a2m(a2m_dir).model.state_dict(), {"model": "wide"})
+    with pytest.raises(ConfigError, match="cannot start from wide"):
+        train_a2m(
+            procedural_clips, PROCEDURAL_ACTIONS, tmp_path / "w", tiny_a2m_config(hidden=16), warm_start=wider
+        )
