@@ -1,11 +1,11 @@
-"""How an ODMO model's decodes start: per frame, root height and lowest foot (README, the rotation decoder).
+"""How an ODMO model's decodes start, per frame: root, lowest foot, highest hand (README, rotation decoder).
 
     python bench/odmo_start.py --data DATA --model resources/models/bandai2-odmo --action run [--n 40]
 
-Prints JSON: for the first ``--frames`` frames, the mean root height and the mean height of the lowest
-foot joint (Foot/Toes) over held-out windows of ``--action`` as they are, the same windows encoded and
-decoded with their own ends, and ``--n`` sampled motions; and the mean foot speed per quarter second of
-each. A start-up transient shows as a rise the real windows do not have.
+Prints JSON: for the first ``--frames`` frames, the mean root height, the mean height of the lowest
+foot joint (Foot/Toes) and of the higher hand over held-out windows of ``--action`` as they are, the
+same windows encoded and decoded with their own ends, and ``--n`` sampled motions; and the mean foot
+speed per quarter second of each. A start-up transient shows as a rise the real windows do not have.
 """
 
 from __future__ import annotations
@@ -27,16 +27,20 @@ from engine.modelio import load_model
 from engine.motion.datasets import load_folder
 
 FEET = ("Foot_L", "Foot_R", "Toes_L", "Toes_R")
+HANDS = ("Hand_L", "Hand_R")
 
 
-def profile(joints: np.ndarray, feet: list[int], frames: int, fps: float) -> dict[str, list[float]]:
-    """Mean root height and lowest foot per frame (first ``frames``) and foot speed per quarter second of
-    ``joints`` (N, T, J, 3)."""
+def profile(
+    joints: np.ndarray, feet: list[int], hands: list[int], frames: int, fps: float
+) -> dict[str, list[float]]:
+    """Mean root height, lowest foot and highest hand per frame (first ``frames``) and foot speed per
+    quarter second of ``joints`` (N, T, J, 3)."""
     speed = np.linalg.norm(np.diff(joints[:, :, feet], axis=1), axis=-1).mean(-1) * fps  # (N, T−1)
     quarter = max(1, round(fps / 4))
     return {
         "root_m": [round(float(v), 3) for v in joints[:, :frames, 0, 1].mean(0)],
         "lowest_foot_m": [round(float(v), 3) for v in joints[:, :frames][..., feet, 1].min(-1).mean(0)],
+        "highest_hand_m": [round(float(v), 3) for v in joints[:, :frames][..., hands, 1].max(-1).mean(0)],
         "foot_speed_per_quarter_s": [
             round(float(speed[:, k : k + quarter].mean()), 2) for k in range(0, speed.shape[1], quarter)
         ],
@@ -57,6 +61,7 @@ def main() -> int:
     loaded = load_model(args.model)
     names = list(loaded.skeleton.names)
     feet = [names.index(n) for n in FEET if n in names]
+    hands = [names.index(n) for n in HANDS if n in names]
     _, test_clips = heldout_split(load_folder(args.data).clips)
     long_enough = [
         c for c in test_clips if c.action == args.action and c.duration * loaded.fps >= loaded.window
@@ -68,7 +73,7 @@ def main() -> int:
         "encoded": np.stack([m.joints for m in decode_batch(loaded, codes, args.action, ends)]),
         "sampled": np.stack([s.motion.joints for s in sample(loaded, args.action, args.n, args.seed)]),
     }
-    report = {name: profile(js, feet, args.frames, loaded.fps) for name, js in sets.items()}
+    report = {name: profile(js, feet, hands, args.frames, loaded.fps) for name, js in sets.items()}
     print(json.dumps({"model": args.model.name, "action": args.action, "n_real": len(windows), **report}))
     return 0
 
