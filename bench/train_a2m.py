@@ -35,6 +35,7 @@ from engine.metrics.a2m_eval import evaluate_a2m
 from engine.metrics.classifier import load_classifier
 from engine.model.a2m import A2mConfig
 from engine.motion.datasets import load_folder
+from engine.motion.motion import Motion
 from engine.train.a2m_loop import train_a2m
 from engine.train.kind_run import WarmStart
 
@@ -106,7 +107,7 @@ def main() -> int:
             device=args.device,
             resume=args.resume,
             progress=show,
-            warm_start=None if args.warm_start is None else warm_start(args.warm_start, test_clips),
+            warm_start=None if args.warm_start is None else warm_start_from(args.warm_start, test_clips),
         )
         summary = {
             "train_seconds": result.train_seconds,
@@ -149,7 +150,7 @@ def main() -> int:
     return 0
 
 
-def warm_start(folder: Path, test_clips: list) -> WarmStart:
+def warm_start_from(folder: Path, test_clips: list[Motion]) -> WarmStart:
     """The weights of the A2M model in ``folder``; SystemExit if it trained on a held-out clip."""
     loaded = load_a2m(folder, with_bank=False)
     made = loaded.provenance
@@ -257,7 +258,7 @@ def warm_start_line(source: dict[str, Any] | None) -> list[str]:
     """The card's line on the weights the run started from, if any."""
     if not source:
         return []
-    before = f"{source['epochs']} epochs, {source['windows_seen']:,} windows" if "epochs" in source else "?"
+    before = f"{source['epochs']} epochs" if "epochs" in source else "its own budget"
     return [
         f"- Started from the weights of `{source['model']}` ({before}, trained on the same split); the "
         "budget above is this run's alone."

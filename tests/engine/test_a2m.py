@@ -13,6 +13,7 @@ import torch
 from scipy.spatial.transform import Rotation
 
 from bench.compare import ROWS, per_action_entries, results_markdown
+from bench.train_a2m import warm_start_from
 from engine.errors import ConfigError, ModelFormatError
 from engine.generators import SampleRequest, open_generator
 from engine.generators.a2m import decode_a2m, encode_a2m, generate_a2m, load_a2m
@@ -416,3 +417,16 @@ def test_warm_start_begins_from_the_saved_weights_and_names_them(
         train_a2m(
             procedural_clips, PROCEDURAL_ACTIONS, tmp_path / "w", tiny_a2m_config(hidden=16), warm_start=wider
         )
+
+
+def test_the_bench_refuses_to_warm_start_from_a_model_that_saw_held_out_clips(
+    a2m_dir: Path, procedural_clips: list[Motion]
+) -> None:
+    seen = [c.meta["source"] for c in procedural_clips]
+    trained_on = set(load_a2m(a2m_dir).provenance["train_sources"])
+    held_out = [c for c, source in zip(procedural_clips, seen, strict=True) if source in trained_on][:1]
+    with pytest.raises(SystemExit, match="trained on held-out clips"):
+        warm_start_from(a2m_dir, held_out)
+    unseen = [c for c, source in zip(procedural_clips, seen, strict=True) if source not in trained_on]
+    assert unseen
+    assert warm_start_from(a2m_dir, unseen).source["model"] == a2m_dir.name
