@@ -3,9 +3,10 @@
     python bench/odmo_start.py --data DATA --model resources/models/bandai2-odmo --action run [--n 40]
 
 Prints JSON: for the first ``--frames`` frames, the mean root height, the mean height of the lowest
-foot joint (Foot/Toes) and of the higher hand over held-out windows of ``--action`` as they are, the
-same windows encoded and decoded with their own ends, and ``--n`` sampled motions; and the mean foot
-speed per quarter second of each. A start-up transient shows as a rise the real windows do not have.
+foot joint and of the higher hand (found by name, ``engine.motion.contact``) over held-out windows of
+``--action`` as they are, the same windows encoded and decoded with their own ends, and ``--n`` sampled
+motions; and the mean foot speed per quarter second of each. A start-up transient shows as a rise the
+real windows do not have.
 """
 
 from __future__ import annotations
@@ -24,10 +25,8 @@ if __package__ in (None, ""):
 from bench.heldout import heldout_split
 from engine.generate import bank_window, decode_batch, encode_clips, sample
 from engine.modelio import load_model
+from engine.motion.contact import foot_joints, hand_joints
 from engine.motion.datasets import load_folder
-
-FEET = ("Foot_L", "Foot_R", "Toes_L", "Toes_R")
-HANDS = ("Hand_L", "Hand_R")
 
 
 def profile(
@@ -59,9 +58,7 @@ def main() -> int:
     args = p.parse_args()
     torch.set_num_threads(1)
     loaded = load_model(args.model)
-    names = list(loaded.skeleton.names)
-    feet = [names.index(n) for n in FEET if n in names]
-    hands = [names.index(n) for n in HANDS if n in names]
+    feet, hands = foot_joints(loaded.skeleton), hand_joints(loaded.skeleton)
     _, test_clips = heldout_split(load_folder(args.data).clips)
     long_enough = [
         c for c in test_clips if c.action == args.action and c.duration * loaded.fps >= loaded.window

@@ -58,7 +58,7 @@ class WarmStart:
     def load_into(self, model: torch.nn.Module) -> None:
         """Copy the state into ``model``; ConfigError when its tensors are not the model's."""
         try:
-            model.load_state_dict(dict(self.state))
+            model.load_state_dict(self.state)
         except RuntimeError as error:
             first = str(error).strip().splitlines()[-1].strip()
             name = self.source.get("model", "those weights")
