@@ -120,6 +120,13 @@ def parse_args() -> argparse.Namespace:
         help="what the pose decoder emits: joint positions, or local rotations (OdmoConfig.pose_output)",
     )
     p.add_argument(
+        "--traj-y-weight",
+        type=float,
+        default=1.0,
+        help="weight of the root path's vertical axis in the trajectory loss (the reference's 5 for "
+        "HumanAct12; OdmoConfig.traj_y_weight)",
+    )
+    p.add_argument(
         "--weight",
         action="append",
         default=list(BUNDLED_WEIGHTS),
@@ -172,6 +179,7 @@ def main() -> int:
         root_velocity_input=args.root_velocity_input,
         mean_pose_init=args.mean_pose_init,
         pose_output=args.pose_output,
+        traj_y_weight=args.traj_y_weight,
         **weights,
     )
     work = args.work
@@ -388,6 +396,9 @@ def model_switches(config: OdmoConfig) -> str:
         )
     if config.root_velocity_input:
         parts.append("`root_velocity_input` (the pose decoder reads each frame's root velocity)")
+    if config.traj_y_weight != 1.0:
+        weight = f"`traj_y_weight = {config.traj_y_weight:g}`"
+        parts.append(f"{weight} (the root path's height counts that many times its floor position)")
     if config.mean_pose_init:
         parts.append("`mean_pose_init` (the pose decoder starts at the mean training pose)")
     if config.contrastive_pull != 1.0:
