@@ -14,13 +14,19 @@ from explorer.workers import Cancel, Progress
 
 if TYPE_CHECKING:
     from engine import generate
+    from engine.generators.base import Generator
     from explorer.controller import Controller
 
 
 VARIATIONS = 8
 LOCAL_MODE_SAMPLES = 6
 PANEL_STRATEGIES = {"one_mode": "mode"}  # mode panel key -> engine strategy
-UNCONDITIONAL_STRATEGIES = ("prior", "mode_preserving", "conventional", "one_mode")  # of a labelled bank
+
+
+def panel_strategies(generator: Generator) -> list[str]:
+    """The mode panel's keys of the strategies ``generator`` samples with, its default first."""
+    engine_to_panel = {v: k for k, v in PANEL_STRATEGIES.items()}
+    return [engine_to_panel.get(s, s) for s in generator.strategies]
 
 
 class Generation:
@@ -85,7 +91,7 @@ class Generation:
         from engine.generators.base import SampleRequest
 
         request = SampleRequest(
-            None if strategy == "prior" else loaded.label_names[action],
+            None if loaded.action_names is None and strategy == "prior" else loaded.label_names[action],
             int(n),
             seed,
             strategy,

@@ -14,7 +14,7 @@ from PySide6.QtWidgets import QFileDialog
 from engine.errors import ModelFormatError, OdmoError
 from engine.motion.motion import Motion
 from explorer.capabilities import PANEL_TOOLS, gate_tools
-from explorer.generation import UNCONDITIONAL_STRATEGIES
+from explorer.generation import panel_strategies
 from explorer.map_layers import META_PREFIX, category_colors, meta_keys, tooltip_texts
 from explorer.model_menu import fill_model_menus, remember_model
 from explorer.preview import BankPreview, read_preview
@@ -170,7 +170,7 @@ class Loader:
         w.action_combo.setCurrentIndex(0)
         w.action_combo.blockSignals(False)
         self._fill_color_combo(bank)
-        w.mode_panel.set_strategies(UNCONDITIONAL_STRATEGIES if loaded.action_names is None else None)
+        w.mode_panel.set_strategies(panel_strategies(loaded))
         gate_tools(w, loaded)
         if set(PANEL_TOOLS.values()) & loaded.capabilities and "end" not in loaded.capabilities:
             w.latent_dock.raise_()  # a kind that sets end locations keeps its trajectory tab in front

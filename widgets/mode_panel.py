@@ -28,7 +28,7 @@ STRATEGIES: tuple[tuple[str, str], ...] = (
     ("one_mode", "One mode"),
     ("weights", "Slider weights"),
 )
-PRIOR = ("prior", "Prior (any action)")  # an unconditional generator's own sampling
+PRIOR = ("prior", "Prior")  # a generator's own sampling (an unconditional one's: of any action)
 _SLIDER_STEPS = 100
 
 

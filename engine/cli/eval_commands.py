@@ -141,7 +141,7 @@ def _cmd_eval(args: argparse.Namespace) -> int:
     classifier = None if clf_dir is None else load_classifier(clf_dir)
     data = _load_clips(args.real, args)
     clips = [drop_extra_joints(clip, loaded.skeleton.names) for clip in data.clips]
-    check_evaluable(loaded, clips, classifier)  # fail before the progress bar appears
+    check_evaluable(loaded, clips, classifier, args.truncation)  # fail before the progress bar appears
     with _bar("evaluating") as progress:
         result = evaluate_generator(
             loaded,
@@ -151,6 +151,7 @@ def _cmd_eval(args: argparse.Namespace) -> int:
             n_per_action=args.n_per_action,
             seed=args.seed,
             strategy=args.strategy,
+            truncation=args.truncation,
             progress=progress,
         )
     print(format_table(result))
@@ -210,6 +211,13 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "--strategy",
         choices=("mode_preserving", "conventional"),
         help="how ODMO draws codes (default mode_preserving); Action2Motion samples from its prior",
+    )
+    e.add_argument(
+        "--truncation",
+        type=float,
+        default=1.0,
+        metavar="PSI",
+        help="sample truncated by PSI (kinds that truncate: Action2Motion's prior, MoDi's W; 1: none)",
     )
     e.add_argument("--json", type=Path, help="write the results as JSON here")
     e.add_argument("--seed", type=int, default=0, help="random seed (0)")

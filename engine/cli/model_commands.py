@@ -427,7 +427,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "--action", help="action name (a conditional model needs one; MoDi: sample that label's modes)"
     )
     p.add_argument(
-        "--truncation", type=float, default=1.0, metavar="PSI", help="pull codes to the mean code (MoDi)"
+        "--truncation",
+        type=float,
+        default=1.0,
+        metavar="PSI",
+        help="pull each draw towards the mean it came from (MoDi's W, Action2Motion's prior; 1: none)",
     )
     p.add_argument("--mode", type=int, default=None, help="sample only this mode (overrides --strategy)")
     p.add_argument("--n", type=int, default=1, help="how many motions")

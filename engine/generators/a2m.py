@@ -17,7 +17,15 @@ import torch
 
 from engine.errors import ConfigError
 from engine.generate import Sample, interpolation_codes
-from engine.generators.base import CodeSpace, FolderGenerator, Generator, SampleRequest, refusal, require
+from engine.generators.base import (
+    CodeSpace,
+    FolderGenerator,
+    Generator,
+    SampleRequest,
+    check_psi,
+    refusal,
+    require,
+)
 from engine.latent.bank import LatentBank
 from engine.model.a2m import A2mConfig, A2mModel
 from engine.modelio import LoadedFolder, read_kind_folder
@@ -79,14 +87,17 @@ def generate_a2m(
     n: int,
     generator: torch.Generator | int,
     bone_scale: float | np.ndarray = 1.0,
+    psi: float = 1.0,
 ) -> tuple[np.ndarray, np.ndarray]:
     """(n, T, J, 3) float32 motions of ``action`` sampled from the learned prior and their z (n, T, Z).
 
     ``generator`` is a torch.Generator on the model's device or a seed; the same seed gives the same
-    motions. ``bone_scale`` scales the skeleton's bones (the paper's body-shape control; "lie" models).
+    motions. ``bone_scale`` scales the skeleton's bones (the paper's body-shape control; "lie" models);
+    the truncation ``psi`` scales the prior's standard deviation (1: the paper's sampling).
     """
     if n < 1:
         raise ConfigError(f"n must be at least 1, got {n}")
+    check_psi(psi)
     index = action_index(loaded, action)
     device = _device(loaded)
     scale = _bone_scale(loaded, bone_scale)
@@ -94,7 +105,7 @@ def generate_a2m(
         generator = torch.Generator(device).manual_seed(generator)
     with torch.inference_mode():
         joints, z = loaded.model.sample(
-            torch.full((n,), index, dtype=torch.long, device=device), generator, scale
+            torch.full((n,), index, dtype=torch.long, device=device), generator, scale, psi
         )
     return joints.cpu().numpy().astype(np.float32), z.cpu().numpy().astype(np.float32)
 
@@ -165,8 +176,9 @@ class A2mGenerator(FolderGenerator):
 
     @property
     def capabilities(self) -> frozenset[str]:
-        """Sample; with a code space decode, encode, interpolate; with a bank also the map, modes, edits."""
-        found = {"sample"}
+        """Sample (with truncation); with a code space decode, encode, interpolate; with a bank also the
+        map, modes, edits."""
+        found = {"sample", "truncate"}
         if _has_code_space(self.loaded):
             found |= {"decode", "encode", "interpolate"}
             if self.loaded.bank is not None:
@@ -199,16 +211,20 @@ class A2mGenerator(FolderGenerator):
 
     def sample(self, request: SampleRequest, bone_scale: float | np.ndarray = 1.0) -> list[Sample]:
         """Motions of the action: from the learned prior (default), or decoded from codes drawn from the
-        bank's modes (``mode_preserving``, ``conventional`` or one ``mode``)."""
+        bank's modes (``mode_preserving``, ``conventional`` or one ``mode``). The truncation ψ pulls
+        each draw towards the mean of the Gaussian it came from: z_t towards the prior's mean, a code
+        towards its mode's (or, conventional, the action's)."""
         if request.end is not None:
             require(self, "end", "take an end location")
         if request.action is None:
             raise ConfigError(f"{self.path}: an Action2Motion model needs an action")
         index = action_index(self.loaded, request.action)
         strategy = "mode" if request.mode is not None else (request.strategy or "prior")
-        meta = {"seed": request.seed, "strategy": strategy}
+        psi = float(request.truncation)
+        check_psi(psi)
+        meta = {"seed": request.seed, "strategy": strategy, "truncation": psi}
         if strategy == "prior":
-            joints, z = generate_a2m(self.loaded, index, request.n, request.seed, bone_scale)
+            joints, z = generate_a2m(self.loaded, index, request.n, request.seed, bone_scale, psi)
             codes = np.zeros((request.n, 0), np.float32)
             if _has_code_space(self.loaded):
                 with torch.inference_mode():
@@ -223,7 +239,8 @@ class A2mGenerator(FolderGenerator):
             raise ConfigError(f"{self.path}: no modes for action {request.action!r}")
         rng = np.random.default_rng(request.seed)
         codes, labels = modes.sample(request.n, rng, strategy=strategy, mode=request.mode)
-        codes = np.asarray(codes, np.float32)
+        centres = np.where(labels[:, None] < 0, modes.conventional_mean_, modes.means_[np.maximum(labels, 0)])
+        codes = (centres + psi * (codes - centres)).astype(np.float32)
         joints = decode_a2m(self.loaded, codes, index, bone_scale)
         return self._samples(joints, codes, index, np.asarray(labels), meta | {"mode": request.mode})
 

@@ -31,6 +31,9 @@ EDIT_KEYS = ("style",)
 #: Bank codes decoded at once while fitting edit directions.
 DIRECTION_BATCH = 512
 
+#: Sampling strategies of a kind's bank modes (``SampleRequest.strategy``; "mode" samples ``request.mode``).
+MODE_STRATEGIES = ("mode_preserving", "conventional", "mode")
+
 #: Every capability a kind may declare, with what it lets a user do (used in refusals and tooltips).
 CAPABILITIES: dict[str, str] = {
     "sample": "sample motions",
@@ -50,6 +53,12 @@ CAPABILITIES: dict[str, str] = {
     "complete": "complete a motion from a prefix",
     "extend": "extend a motion past its window",
 }
+
+
+def check_psi(psi: float) -> None:
+    """ConfigError unless ``psi`` is a finite truncation in [0, 2]."""
+    if not np.isfinite(psi) or not 0.0 <= psi <= 2.0:
+        raise ConfigError(f"truncation psi must lie in [0, 2], got {psi}")
 
 
 class CapabilityError(ConfigError):
@@ -119,6 +128,12 @@ class FolderGenerator:
         """The action labels of its training data (a conditional kind's ``action_names``), which its bank
         codes carry."""
         return list(self.loaded.action_names)
+
+    @property
+    def strategies(self) -> tuple[str, ...]:
+        """The ``SampleRequest.strategy`` names its ``sample`` takes, its default first: its prior, then,
+        with modes, the bank's mode strategies."""
+        return ("prior", *(MODE_STRATEGIES if "modes" in self.capabilities else ()))
 
     @property
     def root_height(self) -> float:
@@ -225,6 +240,7 @@ class Generator(Protocol):
     label_names: list[str]
     code_space: CodeSpace
     capabilities: frozenset[str]
+    strategies: tuple[str, ...]
     bank: LatentBank | None
 
     def sample(self, request: SampleRequest) -> list[Sample]:

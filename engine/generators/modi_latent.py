@@ -15,6 +15,7 @@ import numpy as np
 import torch
 
 from engine.errors import CancelledError, ConfigError
+from engine.generators.base import check_psi
 from engine.model.modi import ModiNetwork
 
 SPACES = ("W", "W+")
@@ -39,12 +40,6 @@ def sample_w(net: ModiNetwork, n: int, seed: int, psi: float = 1.0) -> np.ndarra
     with torch.inference_mode():
         w = net.truncate(net.map(z.to(_device(net))), psi)
     return w.cpu().numpy().astype(np.float32)
-
-
-def check_psi(psi: float) -> None:
-    """ConfigError unless ``psi`` is a finite truncation in [0, 2]."""
-    if not np.isfinite(psi) or not 0.0 <= psi <= 2.0:
-        raise ConfigError(f"truncation psi must lie in [0, 2], got {psi}")
 
 
 def as_wplus(net: ModiNetwork, codes: np.ndarray) -> torch.Tensor:

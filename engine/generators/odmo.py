@@ -13,6 +13,7 @@ from engine.errors import ConfigError
 from engine.generate import PathResult, Sample, WindowCodes
 from engine.generators.base import CodeSpace, FolderGenerator, Generator, SampleRequest, require
 from engine.latent.bank import LatentBank
+from engine.latent.modes import STRATEGIES
 from engine.modelio import LoadedModel, load_model
 from engine.motion.motion import Motion
 
@@ -43,6 +44,11 @@ class OdmoGenerator(FolderGenerator):
         bank; end locations need the model to take them."""
         found = _ALWAYS | (_WITH_BANK if self.loaded.bank is not None else frozenset())
         return found | ({"end"} if self.loaded.config.use_end_location else frozenset())
+
+    @property
+    def strategies(self) -> tuple[str, ...]:
+        """ODMO samples only from its bank's modes (``engine.latent.modes``), slider weights included."""
+        return STRATEGIES
 
     def sample(self, request: SampleRequest) -> list[Sample]:
         """Motions drawn from the action's modes (mode-preserving unless the request says otherwise)."""

@@ -17,6 +17,7 @@ import torch
 
 from engine.errors import ConfigError
 from engine.generators.a2m import LoadedA2m, generate_a2m
+from engine.generators.base import check_psi
 from engine.metrics.classifier import Classifier
 from engine.metrics.evaluate import check_compatible, evaluate_sets, reconstruction_metrics, report
 from engine.metrics.features import canonical_windows, root_heights
@@ -55,9 +56,10 @@ def _reconstruction(
 
 
 def _generated_windows(
-    loaded: LoadedA2m, actions: np.ndarray, n: int, rng: np.random.Generator
+    loaded: LoadedA2m, actions: np.ndarray, n: int, rng: np.random.Generator, psi: float
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Canonical windows (N, T, J, 3) and labels (N,) of ``n`` sampled motions per action.
+    """Canonical windows (N, T, J, 3) and labels (N,) of ``n`` motions per action sampled at truncation
+    ``psi``.
 
     One draw of ``rng`` seeds the torch generator the sampling runs on.
     """
@@ -65,7 +67,7 @@ def _generated_windows(
     generator.manual_seed(int(rng.integers(2**63)))
     motions, labels = [], []
     for a in actions:
-        joints, _ = generate_a2m(loaded, int(a), n, generator)
+        joints, _ = generate_a2m(loaded, int(a), n, generator, psi=psi)
         motions.extend(Motion(j, loaded.fps, loaded.skeleton) for j in joints)
         labels.extend([int(a)] * n)
     heights = root_heights(motions) + np.float32(loaded.root_height)  # the model's origin is frame 0's root
@@ -80,16 +82,19 @@ def evaluate_a2m(
     repeats: int = 10,
     n_per_action: int = 50,
     seed: int = 0,
+    truncation: float = 1.0,
     progress: Callable[[str, float], None] | None = None,
     cancel: Callable[[], bool] | None = None,
 ) -> dict[str, Any]:
     """``{"real": {METRIC: {"mean", "ci95"}}, "generated": {...}, "meta": {...}}`` like ``evaluate``.
 
-    Generated: accuracy, FID, diversity, multimodality, APD, n-APD of ``n_per_action`` sampled motions per
-    action against real set A, and the reconstruction error on the clips the model did not train on.
+    Generated: accuracy, FID, diversity, multimodality, APD, n-APD of ``n_per_action`` motions per action
+    sampled from the learned prior at ``truncation`` ψ (1: the paper's sampling) against real set A, and
+    the reconstruction error on the clips the model did not train on.
     """
     if repeats < 1 or n_per_action < 2:
         raise ConfigError(f"need repeats >= 1 and n_per_action >= 2, got {repeats}, {n_per_action}")
+    check_psi(truncation)
     check_compatible(loaded, real_clips, classifier)
     names = list(loaded.action_names)
     prepared = prepare_clips(real_clips, names, loaded.fps, loaded.window)
@@ -102,7 +107,7 @@ def evaluate_a2m(
     real_runs, gen_runs = evaluate_sets(
         prepared,
         classifier,
-        lambda actions, n, rng: _generated_windows(loaded, actions, n, rng),
+        lambda actions, n, rng: _generated_windows(loaded, actions, n, rng, truncation),
         names=names,
         repeats=repeats,
         n_per_action=n_per_action,
@@ -123,6 +128,7 @@ def evaluate_a2m(
         "repeats": repeats,
         "n_per_action": n_per_action,
         "seed": seed,
+        "truncation": truncation,
         "window": loaded.window,
         "fps": loaded.fps,
         "not_applicable": list(NOT_APPLICABLE),

@@ -14,11 +14,13 @@ if TYPE_CHECKING:
 
 
 def check_evaluable(
-    generator: Generator, real_clips: Sequence[Motion], classifier: Classifier | None
+    generator: Generator, real_clips: Sequence[Motion], classifier: Classifier | None, truncation: float = 1.0
 ) -> None:
-    """ConfigError/DataError (one line) unless the clips and classifier fit the model (before any work)."""
+    """ConfigError/DataError (one line) unless the clips, classifier and truncation fit the model (before
+    any work)."""
     from engine.metrics.evaluate import check_compatible
 
+    _check_truncation(generator, truncation)
     if generator.kind in ("modi", "dvgan"):
         from engine.metrics import dvgan_eval, modi_eval
 
@@ -37,14 +39,19 @@ def evaluate_generator(
     n_per_action: int = 50,
     seed: int = 0,
     strategy: str | None = None,
+    truncation: float = 1.0,
     progress: Callable[[str, float], None] | None = None,
 ) -> dict[str, Any]:
     """``evaluate``'s report (real and generated metrics, per action, meta) for a model of any kind.
 
     ``strategy`` picks how ODMO draws codes (None: mode-preserving); Action2Motion and MoDi sample from
-    their prior, and a strategy given for them is refused.
+    their prior, and a strategy given for them is refused. ``truncation`` ψ ≠ 1 samples truncated, for
+    kinds that truncate (CapabilityError for the others).
     """
     options = {"repeats": repeats, "n_per_action": n_per_action, "seed": seed, "progress": progress}
+    if truncation != 1.0:
+        _check_truncation(generator, truncation)
+        options["truncation"] = truncation
     if generator.kind == "odmo":
         from engine.metrics.evaluate import evaluate
 
@@ -74,3 +81,12 @@ def evaluate_generator(
 
         return evaluate_dvgan(generator, real_clips, classifier, **options)
     raise ConfigError(f"{generator.path}: no evaluation for {generator.kind} models")
+
+
+def _check_truncation(generator: Generator, truncation: float) -> None:
+    """ConfigError unless ``truncation`` is 1 or a valid ψ of a kind that truncates."""
+    from engine.generators.base import check_psi, require
+
+    if truncation != 1.0:
+        check_psi(truncation)
+        require(generator, "truncate", f"evaluate at truncation {truncation:g}")

@@ -53,12 +53,14 @@ def evaluate_modi(
     repeats: int = 10,
     n_per_action: int = 50,
     seed: int = 0,
+    truncation: float = 1.0,
     n_inversions: int = N_INVERSIONS,
     inversion_steps: int = INVERT_STEPS,
     progress: Callable[[str, float], None] | None = None,
     cancel: Callable[[], bool] | None = None,
 ) -> dict[str, Any]:
-    """``{"real", "generated", "per_action", "meta"}`` like ``evaluate``, for an unconditional model."""
+    """``{"real", "generated", "per_action", "meta"}`` like ``evaluate``, for an unconditional model whose
+    samples are truncated by ``truncation`` ψ (1: none)."""
     if repeats < 1 or n_per_action < 2:
         raise ConfigError(f"need repeats >= 1 and n_per_action >= 2, got {repeats}, {n_per_action}")
     names = generator.label_names
@@ -70,7 +72,7 @@ def evaluate_modi(
                                                          for a in classifier.action_names])  # fmt: skip
 
     def generate(actions: np.ndarray, n: int, rng: np.random.Generator) -> tuple[np.ndarray, ...]:
-        codes = sample_w(generator.loaded.model, n * len(actions), int(rng.integers(2**31)))
+        codes = sample_w(generator.loaded.model, n * len(actions), int(rng.integers(2**31)), truncation)
         windows, heights = _windows(generator, codes, window)
         if to_model is None:
             labels = generator.labels_of(codes)
@@ -107,7 +109,7 @@ def evaluate_modi(
         "seed": seed,
         "window": window,
         "fps": generator.fps,
-        "truncation": 1.0,
+        "truncation": truncation,
         "labels": "classifier predictions" if classifier is not None else "nearest bank codes",
         "not_applicable": list(NOT_APPLICABLE),
         "ci": "95% interval 1.96·s/√n over repeats (inversion: over clips)",

@@ -234,14 +234,19 @@ class A2mModel(nn.Module):
         return joints.flatten(-2)
 
     def _rollout(
-        self, cond: Tensor, z: Tensor | None, generator: torch.Generator | None, with_prior: bool = True
+        self,
+        cond: Tensor,
+        z: Tensor | None,
+        generator: torch.Generator | None,
+        with_prior: bool = True,
+        psi: float = 1.0,
     ) -> tuple[Tensor, Tensor, Tensor, Tensor, Tensor]:
         """Free-running poses (B, T, J·3), generator outputs (B, T, out), the z used (B, T, Z) and the prior
         mean / log-variance (B, T, Z).
 
         Each step feeds the previous generated pose; z_t is taken from ``z`` (B, T, Z) or drawn from the
-        prior with ``generator``. Without ``with_prior`` (and with ``z`` given) the prior network is
-        skipped and ``z`` stands in for its mean and log-variance.
+        prior with ``generator``, its standard deviation scaled by ``psi``. Without ``with_prior`` (and with
+        ``z`` given) the prior network is skipped and ``z`` stands in for its mean and log-variance.
         """
         b, t = cond.shape[:2]
         prev = cond.new_zeros(b, 1, self.config.n_joints * 3)
@@ -255,7 +260,7 @@ class A2mModel(nn.Module):
                 mu_p, logvar_p, h_prior = self.prior(torch.cat([prev, c], 2), h_prior)
             if z is None:
                 eps = torch.randn(mu_p.shape, generator=generator, device=mu_p.device)
-                z_t = mu_p + torch.exp(0.5 * logvar_p) * eps
+                z_t = mu_p + psi * torch.exp(0.5 * logvar_p) * eps
             else:
                 z_t = z[:, i : i + 1]
             params, h_gen = self.generator(torch.cat([prev, c, z_t], 2), h_gen)
@@ -310,10 +315,11 @@ class A2mModel(nn.Module):
         return A2mOutput(pred.reshape(b, t, j, 3), mu_q, logvar_q, mu_p, logvar_p)
 
     def sample(
-        self, actions: Tensor, generator: torch.Generator, bone_scale: Tensor | float = 1.0
+        self, actions: Tensor, generator: torch.Generator, bone_scale: Tensor | float = 1.0, psi: float = 1.0
     ) -> tuple[Tensor, Tensor]:
-        """Motions (B, T, J, 3) of ``actions`` (B,) and their z (B, T, Z), each z_t from the learned prior."""
-        poses, params, z, _, _ = self._rollout(self._condition(actions), None, generator)
+        """Motions (B, T, J, 3) of ``actions`` (B,) and their z (B, T, Z), each z_t from the learned prior
+        with its standard deviation scaled by the truncation ``psi`` (1: the paper's, 0: its mean)."""
+        poses, params, z, _, _ = self._rollout(self._condition(actions), None, generator, psi=psi)
         return self._motions(poses, params, bone_scale), z
 
     def decode(self, z: Tensor, actions: Tensor, bone_scale: Tensor | float = 1.0) -> Tensor:

@@ -14,10 +14,13 @@ from scipy.spatial.transform import Rotation
 
 from bench.compare import ROWS, per_action_entries, results_markdown
 from bench.train_a2m import warm_start_from
+from bench.truncation import sweep, sweep_table
 from engine.errors import ConfigError, ModelFormatError
 from engine.generators import SampleRequest, open_generator
 from engine.generators.a2m import decode_a2m, encode_a2m, generate_a2m, load_a2m
+from engine.generators.base import CapabilityError
 from engine.metrics.a2m_eval import NOT_APPLICABLE, evaluate_a2m
+from engine.metrics.by_kind import evaluate_generator
 from engine.metrics.classifier import Classifier, train_classifier
 from engine.metrics.evaluate import evaluate
 from engine.metrics.physics import physics_metrics
@@ -176,6 +179,40 @@ def test_mode_samples_are_their_codes_decoded(a2m_dir: Path, torch_single_thread
         generator.sample(SampleRequest("walk", 1, 0, strategy="greedy"))
 
 
+def test_truncation_scales_the_priors_spread_and_pulls_mode_codes_to_their_mode(
+    a2m_dir: Path, torch_single_thread: None
+) -> None:
+    generator = open_generator(a2m_dir)
+    model = generator.loaded.model
+    paper = generator.sample(SampleRequest("wave", 3, 5))
+    same = generator.sample(SampleRequest("wave", 3, 5, truncation=1.0))
+    np.testing.assert_array_equal(paper[0].motion.joints, same[0].motion.joints)
+    # ψ = 0: every z_t is the prior's mean, so every seed rolls out the same motion
+    mean = generator.sample(SampleRequest("wave", 2, 5, truncation=0.0))
+    np.testing.assert_allclose(mean[0].motion.joints, mean[1].motion.joints, atol=1e-5)
+    other = generator.sample(SampleRequest("wave", 1, 6, truncation=0.0))
+    np.testing.assert_allclose(mean[0].motion.joints, other[0].motion.joints, atol=1e-5)
+    # ψ = 0.5: each z_t lies half as far from the prior mean (the mean of its own rollout) as its draw
+    _, z = generate_a2m(generator.loaded, "wave", 2, 7, psi=0.5)
+    _, z_full = generate_a2m(generator.loaded, "wave", 2, 7)
+    with torch.no_grad():
+        cond = model._condition(torch.full((2,), 1))
+        _, _, _, mu, logvar = model._rollout(cond, torch.from_numpy(z), None)
+        first = torch.randn(mu[:, :1].shape, generator=torch.Generator().manual_seed(7))  # frame 0's draw
+    drawn = mu[:, :1] + 0.5 * torch.exp(0.5 * logvar[:, :1]) * first
+    np.testing.assert_allclose(z[:, :1], drawn.numpy(), atol=1e-5)
+    assert not np.allclose(z, z_full)
+    modes = generator.bank.modes[generator.action_names.index("walk")]
+    pulled = generator.sample(SampleRequest("walk", 4, 3, strategy="mode_preserving", truncation=0.0))
+    for s in pulled:
+        np.testing.assert_allclose(s.code, modes.means_[s.mode], atol=1e-5)
+    centre = generator.sample(SampleRequest("walk", 1, 3, strategy="conventional", truncation=0.0))[0]
+    np.testing.assert_allclose(centre.code, modes.conventional_mean_, atol=1e-5)
+    for psi in (-0.1, 2.5, float("nan")):
+        with pytest.raises(ConfigError, match="truncation psi"):
+            generator.sample(SampleRequest("wave", 1, 0, truncation=psi))
+
+
 def test_bone_scale_changes_the_body_not_the_motion(a2m_dir: Path, torch_single_thread: None) -> None:
     loaded = load_a2m(a2m_dir)
     base, _ = generate_a2m(loaded, "walk", 2, 5)
@@ -319,6 +356,28 @@ def test_evaluation_shares_the_real_sets_with_odmo(
     assert a2m["meta"]["n_reconstruction_clips"] == len(held) > 0
     with pytest.raises(ConfigError):
         evaluate_a2m(load_a2m(a2m_dir), clips, classifier, repeats=0)
+
+
+def test_truncated_evaluation_samples_the_truncated_prior_and_other_kinds_refuse_it(
+    a2m_dir: Path,
+    tiny_model_dir: Path,
+    procedural_clips: list[Motion],
+    classifier: Classifier,
+    torch_single_thread: None,
+) -> None:
+    clips = procedural_clips[::3]
+    options = {"repeats": 1, "n_per_action": 4, "seed": 2}
+    reports = sweep(open_generator(a2m_dir), clips, classifier, [1.0, 0.5], **options)
+    paper, half = reports[1.0], reports[0.5]
+    assert paper["meta"]["truncation"] == 1.0 and half["meta"]["truncation"] == 0.5
+    assert half["real"] == paper["real"] and half["generated"]["fid"] != paper["generated"]["fid"]
+    default = evaluate_generator(open_generator(a2m_dir), clips, classifier, **options)
+    assert paper["generated"] == default["generated"]  # ψ 1 is the paper's sampling
+    rows = sweep_table(reports).splitlines()
+    assert [r.split(" | ")[0] for r in rows[2:]] == ["| real (held-out)", "| ψ 1", "| ψ 0.5"]
+    assert rows[4].split(" | ")[2].startswith(f"{half['generated']['fid']['mean']:.4g} ± ")
+    with pytest.raises(CapabilityError, match=r"cannot evaluate at truncation 0\.5"):
+        evaluate_generator(open_generator(tiny_model_dir), clips, classifier, truncation=0.5, **options)
 
 
 def test_results_table_from_a_tiny_report() -> None:

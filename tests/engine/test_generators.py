@@ -153,6 +153,7 @@ def test_declared_capabilities_work_and_the_others_are_refused(
         "modes": ["sample", "--model", str(folder), "--action", label, "--mode", "0", "--out",
                   str(tmp_path / "m.npz")],
         "end": ["sample", *model, "--end", "1", "2", "--out", str(tmp_path / "e.npz")],
+        "truncate": ["sample", *model, "--truncation", "0.5", "--out", str(tmp_path / "t.npz")],
     }  # fmt: skip
     for capability, argv in runs.items():
         code = main(argv)
@@ -180,11 +181,31 @@ def test_declared_capabilities_work_and_the_others_are_refused(
         assert bank is None
 
 
+def test_each_declared_strategy_samples_and_the_first_is_the_default(folder: Path) -> None:
+    generator = open_generator(folder)
+    action = action_of(generator, 0)
+    default = generator.sample(SampleRequest(action, 2, 3))
+    for strategy in generator.strategies:
+        label = action if strategy == "prior" or action is not None else generator.label_names[0]
+        modes = None if strategy == "prior" else generator.bank.modes[generator.label_names.index(label)]
+        weights = None if strategy != "weights" else tuple(np.ones(modes.n_modes_))
+        mode = 0 if strategy == "mode" else None
+        samples = generator.sample(SampleRequest(label, 2, 3, strategy, mode, weights=weights))
+        assert [s.motion.joints.shape for s in samples] == [
+            (generator.window, generator.skeleton.n_joints, 3)
+        ] * 2
+        if strategy == generator.strategies[0]:
+            for s, d in zip(samples, default, strict=True):
+                np.testing.assert_array_equal(s.motion.joints, d.motion.joints)
+    assert ("modes" in generator.capabilities) == ("mode" in generator.strategies)
+
+
 def test_require_names_what_the_model_can_do(
     tiny_a2m_old_dir: Path, tiny_a2m_dir: Path, capsys: pytest.CaptureFixture
 ) -> None:
     generator = open_generator(tiny_a2m_old_dir)
-    with pytest.raises(CapabilityError, match=r"cannot encode a motion into a code; it can sample motions$"):
+    only = r"it can sample motions, sample with truncation$"
+    with pytest.raises(CapabilityError, match=rf"cannot encode a motion into a code; {only}"):
         require(generator, "encode")
     with pytest.raises(CapabilityError, match=r"cannot set where the motion ends; it can sample motions, "):
         require(open_generator(tiny_a2m_dir), "end")

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
-from engine.generators import open_generator
+from engine.generators import SampleRequest, open_generator
 from engine.motion.formats import read_motion, write_motion
 from explorer.model_menu import bundled_models
 from tests.explorer.conftest import Opened
@@ -48,6 +48,16 @@ def test_an_a2m_model_decodes_interpolates_and_samples_in_the_window(
         window.mode_panel.sample_button.click()
     assert len(c.state.shown) == window.mode_panel.n_box.value()
     assert c.state.extra is not None and len(c.state.extra.xy) == len(c.state.shown)
+
+    # ψ 0 on the truncation slider: every z_t at its prior's mean, so every sample is the same motion
+    assert window.latent_panel.truncate_box.isEnabled()
+    window.mode_panel.strategy_box.setCurrentIndex(window.mode_panel.strategy_box.findData("prior"))
+    window.latent_panel.psi_slider.setValue(0)
+    with qtbot.waitSignal(c.shownChanged, timeout=60_000):
+        window.mode_panel.sample_button.click()
+    [mean] = generator.sample(SampleRequest(c.state.shown[0].motion.action, 1, 0, truncation=0.0))
+    for d in c.state.shown:
+        np.testing.assert_allclose(d.motion.joints, mean.motion.joints, atol=1e-5)
 
 
 def test_tools_the_kind_lacks_are_off_with_the_reason(
