@@ -216,7 +216,9 @@ def test_cli_train_classifier_and_eval(
     assert result["generated"].keys() >= REAL_KEYS | MODEL_KEYS | CONTROL_KEYS
 
 
-def test_cli_eval_takes_any_kind(tiny_a2m_dir: Path, procedural_clips, tmp_path: Path, capsys) -> None:
+def test_cli_eval_takes_any_kind(
+    tiny_a2m_dir: Path, tiny_model_dir: Path, procedural_clips, tmp_path: Path, capsys
+) -> None:
     data = _write_folder(procedural_clips, tmp_path / "real")
     out = tmp_path / "eval.json"
     argv = ["eval", "--model", str(tiny_a2m_dir), "--real", str(data), "--labels", "labels.csv"]
@@ -233,6 +235,18 @@ def test_cli_eval_takes_any_kind(tiny_a2m_dir: Path, procedural_clips, tmp_path:
     assert engine.cli.main([*argv, "--strategy", "conventional"]) == 1
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "learned prior" in err
+    assert engine.cli.main([*argv, "--truncation", "0.5"]) == 0
+    truncated = json.loads(out.read_text())
+    assert truncated["meta"]["truncation"] == 0.5 and truncated["real"] == written["real"]
+    assert truncated["generated"]["apd"] != written["generated"]["apd"]
+    odmo = [a if a != str(tiny_a2m_dir) else str(tiny_model_dir) for a in argv]
+    for bad, why in (
+        (["--truncation", "0.5"], "cannot evaluate at truncation 0.5"),
+        (["--truncation", "3"], "[0, 2]"),
+    ):
+        assert engine.cli.main([*(odmo if why.startswith("cannot") else argv), *bad]) == 1
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and why in err
 
 
 def test_cli_eval_of_an_unconditional_model(tiny_modi_dir: Path, procedural_clips, tmp_path: Path) -> None:
