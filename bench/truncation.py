@@ -1,12 +1,14 @@
 """What truncation does to a model's samples: the held-out evaluation at each ψ, side by side.
 
     python bench/truncation.py --data DATA --model resources/models/bandai2-a2m --psi 1 0.7 0.5 [--repeats 3]
+        [--strategy mode_preserving]
 
 For a kind that truncates (Action2Motion: ψ scales its learned prior's standard deviation; MoDi: ψ pulls
 w towards the mean w), evaluates samples at each ψ against the held-out clips of bench/heldout.py with
 ``engine.metrics.by_kind.evaluate_generator`` (the same real sets, classifier and seed for every ψ) and
 prints a markdown table: accuracy, FID, diversity and the physical figures that truncation trades
-(jerk, planted-foot speed, hand speed), real first. ``--json`` writes every report.
+(jerk, planted-foot speed, hand speed), real first. ``--strategy`` samples Action2Motion's codes from its
+bank's modes instead of its prior. ``--json`` writes every report.
 """
 
 from __future__ import annotations
@@ -74,6 +76,9 @@ def main() -> int:
     p.add_argument("--data", required=True, type=Path)
     p.add_argument("--model", required=True, type=Path)
     p.add_argument("--psi", type=float, nargs="+", default=[1.0, 0.7, 0.5])
+    p.add_argument(
+        "--strategy", choices=("mode_preserving", "conventional"), help="(Action2Motion) from modes"
+    )
     p.add_argument("--classifier", type=Path, default=CLASSIFIER)
     p.add_argument("--repeats", type=int, default=3)
     p.add_argument("--n-per-action", type=int, default=50)
@@ -84,6 +89,7 @@ def main() -> int:
     torch.set_num_threads(args.threads)
     _, test_clips = heldout_split(load_folder(args.data).clips)
     options = {"repeats": args.repeats, "n_per_action": args.n_per_action, "seed": args.seed}
+    options["strategy"] = args.strategy
     generator, classifier = open_generator(args.model), load_classifier(args.classifier)
     reports = sweep(generator, test_clips, classifier, args.psi, **options)
     print(sweep_table(reports))

@@ -210,7 +210,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     e.add_argument(
         "--strategy",
         choices=("mode_preserving", "conventional"),
-        help="how ODMO draws codes (default mode_preserving); Action2Motion samples from its prior",
+        help="draw codes from the bank's modes: ODMO's (its default mode_preserving) or Action2Motion's "
+        "(its default: the learned prior)",
     )
     e.add_argument(
         "--truncation",

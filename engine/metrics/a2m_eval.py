@@ -2,8 +2,8 @@
 
 Both run ``evaluate.evaluate_sets``, so for the same clips, classifier and seed the real row is identical
 and the generated rows of ODMO and A2M are compared against the same real windows. Mode, style and
-end-point metrics do not apply to A2M (its samples come from its learned prior, not from modes; it takes
-no end location) and are listed in ``meta["not_applicable"]``.
+end-point metrics do not apply to A2M (its samples come from its learned prior by default; it takes no
+end location) and are listed in ``meta["not_applicable"]``.
 """
 
 from __future__ import annotations
@@ -16,8 +16,8 @@ import numpy as np
 import torch
 
 from engine.errors import ConfigError
-from engine.generators.a2m import LoadedA2m, generate_a2m
-from engine.generators.base import check_psi
+from engine.generators.a2m import STRATEGIES, A2mGenerator, LoadedA2m, generate_a2m
+from engine.generators.base import SampleRequest, check_psi, require
 from engine.metrics.classifier import Classifier
 from engine.metrics.evaluate import check_compatible, evaluate_sets, reconstruction_metrics, report
 from engine.metrics.features import canonical_windows, root_heights
@@ -56,13 +56,25 @@ def _reconstruction(
 
 
 def _generated_windows(
-    loaded: LoadedA2m, actions: np.ndarray, n: int, rng: np.random.Generator, psi: float
+    loaded: LoadedA2m, actions: np.ndarray, n: int, rng: np.random.Generator, psi: float, strategy: str
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Canonical windows (N, T, J, 3) and labels (N,) of ``n`` motions per action sampled at truncation
-    ``psi``.
+    """Canonical windows (N, T, J, 3), labels (N,) and root heights of ``n`` motions per action sampled
+    with ``strategy`` at truncation ``psi``.
 
-    One draw of ``rng`` seeds the torch generator the sampling runs on.
+    From the prior, one draw of ``rng`` seeds the torch generator the sampling runs on; from the bank's
+    modes, one draw per action seeds ``A2mGenerator.sample``.
     """
+    if strategy != "prior":
+        sampler = A2mGenerator(loaded)
+        found = [
+            sampler.sample(
+                SampleRequest(loaded.action_names[a], n, int(rng.integers(2**31)), strategy, truncation=psi)
+            )
+            for a in actions
+        ]
+        motions = [s.motion for samples in found for s in samples]  # at display height already
+        labels = np.repeat(np.asarray(actions, dtype=np.int64), n)
+        return canonical_windows(motions, loaded.window), labels, root_heights(motions)
     generator = torch.Generator(next(loaded.model.parameters()).device)
     generator.manual_seed(int(rng.integers(2**63)))
     motions, labels = [], []
@@ -83,18 +95,24 @@ def evaluate_a2m(
     n_per_action: int = 50,
     seed: int = 0,
     truncation: float = 1.0,
+    strategy: str = "prior",
     progress: Callable[[str, float], None] | None = None,
     cancel: Callable[[], bool] | None = None,
 ) -> dict[str, Any]:
     """``{"real": {METRIC: {"mean", "ci95"}}, "generated": {...}, "meta": {...}}`` like ``evaluate``.
 
     Generated: accuracy, FID, diversity, multimodality, APD, n-APD of ``n_per_action`` motions per action
-    sampled from the learned prior at ``truncation`` ψ (1: the paper's sampling) against real set A, and
-    the reconstruction error on the clips the model did not train on.
+    sampled with ``strategy`` (the learned prior, the paper's; or the bank's modes, "mode_preserving" or
+    "conventional", as ODMO samples) at ``truncation`` ψ (1: the paper's sampling) against real set A,
+    and the reconstruction error on the clips the model did not train on.
     """
     if repeats < 1 or n_per_action < 2:
         raise ConfigError(f"need repeats >= 1 and n_per_action >= 2, got {repeats}, {n_per_action}")
     check_psi(truncation)
+    if strategy not in STRATEGIES:
+        raise ConfigError(f"unknown strategy {strategy!r}; choose from {', '.join(STRATEGIES)}")
+    if strategy != "prior":
+        require(A2mGenerator(loaded), "modes", f"sample {strategy.replace('_', '-')} codes from modes")
     check_compatible(loaded, real_clips, classifier)
     names = list(loaded.action_names)
     prepared = prepare_clips(real_clips, names, loaded.fps, loaded.window)
@@ -107,7 +125,7 @@ def evaluate_a2m(
     real_runs, gen_runs = evaluate_sets(
         prepared,
         classifier,
-        lambda actions, n, rng: _generated_windows(loaded, actions, n, rng, truncation),
+        lambda actions, n, rng: _generated_windows(loaded, actions, n, rng, truncation, strategy),
         names=names,
         repeats=repeats,
         n_per_action=n_per_action,
@@ -129,6 +147,7 @@ def evaluate_a2m(
         "n_per_action": n_per_action,
         "seed": seed,
         "truncation": truncation,
+        "strategy": strategy,
         "window": loaded.window,
         "fps": loaded.fps,
         "not_applicable": list(NOT_APPLICABLE),

@@ -44,9 +44,9 @@ def evaluate_generator(
 ) -> dict[str, Any]:
     """``evaluate``'s report (real and generated metrics, per action, meta) for a model of any kind.
 
-    ``strategy`` picks how ODMO draws codes (None: mode-preserving); Action2Motion and MoDi sample from
-    their prior, and a strategy given for them is refused. ``truncation`` ψ ≠ 1 samples truncated, for
-    kinds that truncate (CapabilityError for the others).
+    ``strategy`` picks how ODMO (None: mode-preserving) and Action2Motion (None: its learned prior) draw
+    codes; MoDi and DVGAN are evaluated on their prior, and a strategy given for them is refused.
+    ``truncation`` ψ ≠ 1 samples truncated, for kinds that truncate (CapabilityError for the others).
     """
     options = {"repeats": repeats, "n_per_action": n_per_action, "seed": seed, "progress": progress}
     if truncation != 1.0:
@@ -59,13 +59,9 @@ def evaluate_generator(
             generator.loaded, real_clips, classifier, strategy=strategy or "mode_preserving", **options
         )
     if generator.kind == "a2m":
-        if strategy is not None:
-            raise ConfigError(
-                f"{generator.path}: an a2m model samples from its learned prior; drop --strategy"
-            )
         from engine.metrics.a2m_eval import evaluate_a2m
 
-        return evaluate_a2m(generator.loaded, real_clips, classifier, **options)
+        return evaluate_a2m(generator.loaded, real_clips, classifier, strategy=strategy or "prior", **options)
     if generator.kind == "modi":
         if strategy is not None:
             raise ConfigError(f"{generator.path}: a modi model is evaluated on its prior; drop --strategy")

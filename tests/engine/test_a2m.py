@@ -23,6 +23,7 @@ from engine.metrics.a2m_eval import NOT_APPLICABLE, evaluate_a2m
 from engine.metrics.by_kind import evaluate_generator
 from engine.metrics.classifier import Classifier, train_classifier
 from engine.metrics.evaluate import evaluate
+from engine.metrics.features import canonical_windows
 from engine.metrics.physics import physics_metrics
 from engine.model.a2m import A2mConfig, A2mModel, so3_exp
 from engine.modelio import load_model, write_model_folder
@@ -378,6 +379,35 @@ def test_truncated_evaluation_samples_the_truncated_prior_and_other_kinds_refuse
     assert rows[4].split(" | ")[2].startswith(f"{half['generated']['fid']['mean']:.4g} ± ")
     with pytest.raises(CapabilityError, match=r"cannot evaluate at truncation 0\.5"):
         evaluate_generator(open_generator(tiny_model_dir), clips, classifier, truncation=0.5, **options)
+
+
+def test_evaluation_from_the_banks_modes_scores_the_decoded_mode_codes(
+    a2m_dir: Path,
+    tiny_a2m_old_dir: Path,
+    procedural_clips: list[Motion],
+    classifier: Classifier,
+    torch_single_thread: None,
+) -> None:
+    clips = procedural_clips[::3]
+    options = {"repeats": 1, "n_per_action": 4, "strategy": "conventional", "truncation": 0.0}
+    report = evaluate_a2m(load_a2m(a2m_dir), clips, classifier, **options)
+    assert report["meta"]["strategy"] == "conventional"
+    # ψ 0 pulls every conventional draw onto the action's mean code: one motion per action, so same-action
+    # pairs lie at distance 0 and each action's accuracy is whether its mean code's motion is read right
+    assert report["generated"]["multimodality"]["mean"] == pytest.approx(0.0, abs=1e-4)
+    generator = open_generator(a2m_dir)
+    for index, action in enumerate(PROCEDURAL_ACTIONS):
+        centre = generator.bank.modes[index].conventional_mean_[None]
+        [motion] = generator.decode(centre, action)
+        _, [predicted] = classifier.classify(canonical_windows([motion], 60))
+        row = report["per_action"][action]["generated"]
+        assert row["accuracy"]["mean"] == float(predicted == index)
+        hands = physics_metrics([motion.joints], motion.skeleton, motion.fps)["hand_speed_m_s"]
+        assert row["hand_speed_m_s"]["mean"] == pytest.approx(hands, rel=1e-4)
+    with pytest.raises(ConfigError, match="unknown strategy"):
+        evaluate_a2m(load_a2m(a2m_dir), clips, classifier, strategy="weights")
+    with pytest.raises(CapabilityError, match="cannot sample mode-preserving codes from modes"):
+        evaluate_a2m(load_a2m(tiny_a2m_old_dir), clips, classifier, strategy="mode_preserving")
 
 
 def test_results_table_from_a_tiny_report() -> None:

@@ -232,9 +232,11 @@ def test_cli_eval_takes_any_kind(
             if np.isfinite(value["mean"]):
                 assert written[row][metric]["mean"] == pytest.approx(value["mean"], rel=1e-5), metric
     capsys.readouterr()
-    assert engine.cli.main([*argv, "--strategy", "conventional"]) == 1
-    err = capsys.readouterr().err
-    assert err.count("\n") == 1 and "learned prior" in err
+    assert written["meta"]["strategy"] == "prior"
+    assert engine.cli.main([*argv, "--strategy", "conventional"]) == 0  # ODMO's sampling of A2M's codes
+    from_modes = json.loads(out.read_text())
+    assert from_modes["meta"]["strategy"] == "conventional" and from_modes["real"] == written["real"]
+    assert from_modes["generated"]["apd"] != written["generated"]["apd"]
     assert engine.cli.main([*argv, "--truncation", "0.5"]) == 0
     truncated = json.loads(out.read_text())
     assert truncated["meta"]["truncation"] == 0.5 and truncated["real"] == written["real"]
