@@ -264,7 +264,7 @@ def test_old_baseline_folders_load_as_the_joint_position_model(
     )
     assert loaded.bank is None
     generator = open_generator(tiny_a2m_old_dir)
-    assert generator.capabilities == {"sample"}
+    assert generator.capabilities == {"sample", "truncate"}
     joints, _ = generate_a2m(loaded, "walk", 2, 3)
     assert joints.shape == (2, 60, 11, 3) and np.all(np.isfinite(joints))
     with pytest.raises(ConfigError, match="no bones to scale"):
