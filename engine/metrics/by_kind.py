@@ -49,8 +49,8 @@ def evaluate_generator(
     ``truncation`` ψ ≠ 1 samples truncated, for kinds that truncate (CapabilityError for the others).
     """
     options = {"repeats": repeats, "n_per_action": n_per_action, "seed": seed, "progress": progress}
-    if truncation != 1.0:
-        _check_truncation(generator, truncation)
+    _check_truncation(generator, truncation)
+    if truncation != 1.0:  # only the kinds that truncate take it
         options["truncation"] = truncation
     if generator.kind == "odmo":
         from engine.metrics.evaluate import evaluate
