@@ -77,6 +77,12 @@ def parse_args() -> argparse.Namespace:
         help="frames per run whose mean pose the w_free term compares (1: every frame's pose)",
     )
     p.add_argument(
+        "--free-shift",
+        type=int,
+        default=0,
+        help="frames the w_free term may shift each window in time to fit it (0: none)",
+    )
+    p.add_argument(
         "--speed-span",
         type=int,
         default=0,
@@ -171,6 +177,7 @@ def main() -> int:
         contrastive_pull=args.contrastive_pull,
         speed_error=args.speed_error,
         free_span=args.free_span,
+        free_shift=args.free_shift,
         speed_span=args.speed_span,
         spectrum_span=args.spectrum_span,
         spectrum_legs=not args.spectrum_no_legs,
@@ -363,6 +370,8 @@ def model_switches(config: OdmoConfig) -> str:
         parts.append(f"`w_velocity = {config.w_velocity:g}` (an L2 loss on joint velocities)")
     if config.w_free > 0:
         per = f" of the mean pose per {config.free_span}-frame span" if config.free_span > 1 else ""
+        if config.free_shift:
+            per += f", at the time shift of at most {config.free_shift} frames that fits each window best"
         parts.append(f"`w_free = {config.w_free:g}` (a reconstruction loss{per} on a free-running decode)")
     if config.w_speed > 0:
         what = "log " if config.speed_error == "log" else ""

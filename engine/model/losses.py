@@ -72,16 +72,41 @@ def _span_sums(steps: Tensor, span: int) -> Tensor:
     return _spans(steps, span).sum(2)
 
 
+def _window_span_errors(pred: Tensor, target: Tensor, mask: Tensor, span: int) -> tuple[Tensor, Tensor]:
+    """Per window (B,): the squared errors of the runs' mean positions (``span_mean_mse``), each run's
+    weighted by its real frames and summed, and the window's real frames."""
+    real = mask.to(pred.dtype)[:, :, None, None]
+    counts = _span_sums(real, span)  # (B, K, 1, 1)
+    error = (_span_sums(pred * real, span) - _span_sums(target * real, span)) / counts.clamp(min=1.0)
+    return (error.square().flatten(2).mean(2) * counts[:, :, 0, 0]).sum(1), counts.flatten(1).sum(1)
+
+
 def span_mean_mse(pred: Tensor, target: Tensor, mask: Tensor, span: int) -> Tensor:
     """Squared error of the mean positions of ``pred`` against ``target`` (B, T, J, 3) over the real
     frames of each run of ``span`` frames, weighted by its real frames (1: ``masked_mse``): the motion
     within a run is left to phase-free terms, so an uncertain phase no longer pulls it to a still pose."""
     if span <= 1:
         return masked_mse(pred, target, mask)
-    real = mask.to(pred.dtype)[:, :, None, None]
-    counts = _span_sums(real, span)  # (B, K, 1, 1)
-    error = (_span_sums(pred * real, span) - _span_sums(target * real, span)) / counts.clamp(min=1.0)
-    return (error.square().flatten(2).mean(2) * counts[:, :, 0, 0]).sum() / counts.sum().clamp(min=1.0)
+    error, frames = _window_span_errors(pred, target, mask, span)
+    return error.sum() / frames.sum().clamp(min=1.0)
+
+
+def shift_tolerant_mse(pred: Tensor, target: Tensor, mask: Tensor, span: int, max_shift: int) -> Tensor:
+    """``span_mean_mse`` of each window at the time shift that fits it best: ``pred`` frame t against
+    ``target`` frame t + s, |s| ≤ ``max_shift``, over the frames real in both. A decode that keeps the
+    motion's amplitude but not its phase is not pulled toward a still pose."""
+    n_frames = pred.shape[1]
+    errors, weights = [], []
+    for s in range(-max_shift, max_shift + 1):
+        a, b, n = max(0, -s), max(0, s), n_frames - abs(s)
+        both = mask[:, a : a + n].bool() & mask[:, b : b + n].bool()
+        error, frames = _window_span_errors(pred[:, a : a + n], target[:, b : b + n], both, max(span, 1))
+        errors.append(torch.where(frames > 0, error / frames.clamp(min=1.0), torch.inf))
+        weights.append(frames)
+    best = torch.stack(errors, 1).argmin(1, keepdim=True)
+    error = torch.stack(errors, 1).gather(1, best)[:, 0]
+    frames = torch.stack(weights, 1).gather(1, best)[:, 0]
+    return torch.where(frames > 0, error * frames, 0.0).sum() / frames.sum().clamp(min=1.0)
 
 
 def _real_pairs(mask: Tensor) -> Tensor:
@@ -394,7 +419,11 @@ def odmo_losses(
     }
     twist_on = free_joints is not None and hips is not None and shoulders is not None
     if free_joints is not None:
-        terms["free"] = span_mean_mse(free_joints, joints, mask, config.free_span)
+        if config.free_shift > 0:  # root-relative: the shifted target's root is the trajectory loss's
+            local, truth = (x - x[:, :, root : root + 1] for x in (free_joints, joints))
+            terms["free"] = shift_tolerant_mse(local, truth, mask, config.free_span, config.free_shift)
+        else:
+            terms["free"] = span_mean_mse(free_joints, joints, mask, config.free_span)
         log = config.speed_error == "log"
         terms["speed"] = speed_loss(free_joints, joints, mask, config.fps, root, log, config.speed_span)
         terms["spectrum"] = spectrum_loss(free_joints, joints, mask, root, spectrum_on, config.spectrum_span)

@@ -29,6 +29,7 @@ from engine.model.losses import (
     odmo_losses,
     own_contacts,
     prior_loss,
+    shift_tolerant_mse,
     skate_loss,
     span_mean_mse,
     spectrum_joints,
@@ -482,6 +483,56 @@ def test_free_spans_compare_mean_poses_and_leave_the_swing_to_the_phase_free_ter
     assert cfg.to_dict()["free_span"] == 10
     with pytest.raises(ConfigError, match="free_span"):
         OdmoConfig(n_actions=2, n_joints=2, free_span=0)
+
+
+def _swing_at(phase: float, amplitude: float = 0.1) -> torch.Tensor:
+    """``_swinging`` at 1 Hz (20 frames a cycle at 20 fps), its swing started ``phase`` cycles later."""
+    joints = _swinging(1.0, 0.0)
+    t = torch.arange(60, dtype=torch.float64) / 20.0
+    joints[0, :, 1, 2] = amplitude * torch.sin(2 * math.pi * (t - phase))
+    return joints
+
+
+def test_a_shift_tolerant_free_term_keeps_a_swing_out_of_phase_above_a_still_pose() -> None:
+    """Per frame (about the root), a swing a quarter cycle (5 frames) out of phase costs more than the
+    still pose at its mean, which is what pulls a free decode of uncertain phase to a standstill;
+    allowed a shift of 5 frames it costs nothing and the still pose keeps its cost; shift 0 is the
+    per-frame error, padded frames count for neither, and every window takes its own shift."""
+    mask = torch.ones(1, 60, dtype=torch.bool)
+    truth, late, still = (x - x[:, :, :1] for x in (_swing_at(0.0), _swing_at(0.25), _swing_at(0.0, 0.0)))
+    assert float(masked_mse(late, truth, mask)) > float(masked_mse(still, truth, mask))
+    assert float(shift_tolerant_mse(late, truth, mask, 1, 5)) < 1e-20
+    assert float(shift_tolerant_mse(still, truth, mask, 1, 5)) == pytest.approx(0.1**2 / 2 / 6, rel=0.05)
+    one_frame_off = (2 * 0.1 * math.sin(math.pi / 20)) ** 2 / 2 / 6  # 5 frames late, 4 allowed
+    assert float(shift_tolerant_mse(late, truth, mask, 1, 4)) == pytest.approx(one_frame_off, rel=0.05)
+    torch.testing.assert_close(shift_tolerant_mse(late, truth, mask, 1, 0), masked_mse(late, truth, mask))
+    padded = mask.clone()
+    padded[0, 50:] = False
+    spoiled = late.clone()
+    spoiled[:, 50:] += 5.0
+    assert float(shift_tolerant_mse(spoiled, truth, padded, 1, 5)) < 1e-20
+    early = _swing_at(-0.25) - _swing_at(-0.25)[:, :, :1]
+    both = shift_tolerant_mse(torch.cat([late, early]), torch.cat([truth, truth]), mask.repeat(2, 1), 1, 5)
+    assert float(both) < 1e-20
+
+
+def test_the_free_term_shifts_root_relative_poses_when_asked() -> None:
+    """A free decode whose hand swings a quarter cycle late along a root that walks on time: the per-frame
+    free term sees the lag, ``free_shift`` 5 does not (it compares poses about the root, whose path is
+    the trajectory loss's); the field is saved and checked."""
+    truth, late = _swing_at(0.0).float(), _swing_at(0.25).float()
+    mask = torch.ones(1, 60, dtype=torch.bool)
+    kw = {"mu": torch.zeros(1, 20), "logvar": torch.zeros(1, 20), "same": torch.tensor([True]), "root": 0}
+    kw |= {"joints": truth, "trajectory": truth[:, :, 0], "mask": mask, "pred_joints": truth}
+    kw |= {"pred_trajectory": truth[:, :, 0], "free_joints": late}
+    plain = OdmoConfig(n_actions=2, n_joints=2, w_free=1.0)
+    shifted = OdmoConfig(n_actions=2, n_joints=2, w_free=1.0, free_shift=5)
+    assert float(odmo_losses(plain, **kw)["free"]) > 1e-4
+    assert float(odmo_losses(shifted, **kw)["free"]) < 1e-12
+    assert shifted.to_dict()["free_shift"] == 5
+    assert OdmoConfig.from_dict(plain.to_dict() | {"free_shift": 5}).free_shift == 5
+    with pytest.raises(ConfigError, match="free_shift"):
+        OdmoConfig(n_actions=2, n_joints=2, free_shift=-1)
 
 
 def test_skate_loss_is_the_squared_speed_of_planted_feet() -> None:
