@@ -1,0 +1,100 @@
+"""Does an ODMO decoder keep the stride and the wave when it runs on its own poses (README, stop 40)?
+
+    python bench/odmo_stride.py --data DATA --model resources/models/bandai2-odmo
+        [--actions walk run wave-right-hand] [--n 60]
+
+Held-out windows of each action are encoded and decoded with their own codes and ends twice: running
+free (as sampling does) and teacher-forced (every previous pose taken from the real window; each frame
+is then a one-step prediction). Prints JSON per action: for the real windows and both decodes (before the
+foot clean-up), the stride (the first ankle's lead over the second along the window's travel: its std
+over frames, mean over windows), its per-window correlation with the real window's (how well the decode
+keeps the real phase) and the mean speed of the faster hand about the root. A decoder that keeps the
+stride teacher-forced and loses it running free damps its own motion.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+import numpy as np
+import torch
+
+if __package__ in (None, ""):
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from bench.heldout import heldout_split
+from engine.generate import bank_window, encode_clips
+from engine.generate._decode import display_lift, ready_model
+from engine.modelio import load_model
+from engine.motion.contact import hand_joints, leg_chains
+from engine.motion.datasets import load_folder
+
+
+def strides(joints: np.ndarray, ankles: tuple[int, int], root: int) -> np.ndarray:
+    """(N, T): the first ankle's lead over the second along each window's travel (the root's path from
+    first to last frame on the floor; +z where it moves under 20 cm) of ``joints`` (N, T, J, 3)."""
+    travel = joints[:, -1, root, [0, 2]] - joints[:, 0, root, [0, 2]]
+    length = np.linalg.norm(travel, axis=1, keepdims=True)
+    forward = np.where(length > 0.2, travel / np.maximum(length, 1e-9), np.array([[0.0, 1.0]]))
+    apart = joints[:, :, ankles[0]][..., [0, 2]] - joints[:, :, ankles[1]][..., [0, 2]]
+    return np.einsum("ntk,nk->nt", apart, forward)
+
+
+def stride_figures(
+    joints: np.ndarray, real: np.ndarray, ankles: tuple[int, int], hands: list[int], root: int, fps: float
+) -> dict[str, float]:
+    """Stride (m), its mean per-window correlation with ``real``'s and the faster hand's mean speed about
+    the root (m/s) of ``joints`` (N, T, J, 3) decoded from the windows ``real`` (N, T, J, 3)."""
+    mine, theirs = strides(joints, ankles, root), strides(real, ankles, root)
+    a, b = mine - mine.mean(1, keepdims=True), theirs - theirs.mean(1, keepdims=True)
+    denominator = np.sqrt((a * a).sum(1) * (b * b).sum(1))
+    corr = np.where(denominator > 1e-12, (a * b).sum(1) / np.maximum(denominator, 1e-12), 0.0)
+    local = joints[:, :, hands] - joints[:, :, root : root + 1]
+    hand_speed = np.linalg.norm(np.diff(local, axis=1), axis=-1).mean(1).max(-1) * fps  # (N,)
+    return {
+        "stride_m": round(float(mine.std(1).mean()), 3),
+        "phase_r": round(float(corr.mean()), 2),
+        "hand_speed_m_s": round(float(hand_speed.mean()), 2),
+    }
+
+
+def main() -> int:
+    """Print the figures per action."""
+    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--data", required=True, type=Path)
+    p.add_argument("--model", required=True, type=Path)
+    p.add_argument("--actions", nargs="+", default=["walk", "run", "wave-right-hand"])
+    p.add_argument("--n", type=int, default=60)
+    args = p.parse_args()
+    torch.set_num_threads(1)
+    loaded = load_model(args.model)
+    model, lift = ready_model(loaded), display_lift(loaded)
+    ankles = tuple(chain[2] for chain in leg_chains(loaded.skeleton))[:2]
+    if len(ankles) != 2:
+        raise SystemExit(f"{args.model}: the skeleton has no two legs to measure a stride on")
+    hands, root = hand_joints(loaded.skeleton), loaded.skeleton.root
+    _, test_clips = heldout_split(load_folder(args.data).clips)
+    report = {}
+    for action in args.actions:
+        clips = [c for c in test_clips if c.action == action and c.duration * loaded.fps >= loaded.window]
+        windows = [bank_window(loaded, c) for c in clips[: args.n]]
+        codes, ends = encode_clips(loaded, windows)
+        real = np.stack([w.joints for w in windows]).astype(np.float32)
+        z, e = torch.from_numpy(codes), torch.from_numpy(ends)
+        a = torch.full((len(z),), loaded.action_names.index(action))
+        truth = torch.from_numpy(real - lift)
+        with torch.inference_mode():
+            free = model.decode_full(z, a, e).joints.numpy() + lift
+            forced = model.decode_full(z, a, e, prev_truth=truth, tf_rate=1.0).joints.numpy() + lift
+        sets = {"real": real, "free": free.reshape(real.shape), "forced": forced.reshape(real.shape)}
+        figures = {k: stride_figures(js, real, ankles, hands, root, loaded.fps) for k, js in sets.items()}
+        report[action] = {"n": len(windows)} | figures
+    print(json.dumps({"model": args.model.name, **report}, indent=1))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

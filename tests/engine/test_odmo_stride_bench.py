@@ -1,0 +1,44 @@
+"""The stride figures of bench/odmo_stride.py on motion whose stride, phase and hand speed are known."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from bench.odmo_stride import stride_figures, strides
+
+
+def _gait(amplitude: float, phase: float, direction: tuple[float, float], frames: int = 40) -> np.ndarray:
+    """(1, frames, 4, 3): a root walking at 1 m/s along ``direction`` (x, z), two ankles leading each
+    other by ``amplitude``·sin about it at 1 Hz, and a hand circling the root at 0.5 m/s (20 fps)."""
+    t = np.arange(frames) / 20.0
+    d = np.array([direction[0], 0.0, direction[1]])
+    root = t[:, None] * d + np.array([0.0, 0.9, 0.0])
+    lead = amplitude / 2 * np.sin(2 * np.pi * (t - phase))
+    joints = np.zeros((1, frames, 4, 3))
+    joints[0, :, 0] = root
+    joints[0, :, 1] = root + lead[:, None] * d
+    joints[0, :, 2] = root - lead[:, None] * d
+    angle = 0.5 * t / 0.1  # a 0.1 m circle at 0.5 m/s
+    joints[0, :, 3] = root + np.stack([0.1 * np.cos(angle), np.full_like(t, 0.5), 0.1 * np.sin(angle)], 1)
+    return joints
+
+
+def test_the_stride_is_the_ankles_lead_along_the_travel_whichever_way_it_goes() -> None:
+    sideways = _gait(0.6, 0.0, (1.0, 0.0))
+    expected = 0.6 * np.sin(2 * np.pi * np.arange(40) / 20)
+    np.testing.assert_allclose(strides(sideways, (1, 2), 0)[0], expected, atol=1e-12)
+    standing = sideways.copy()
+    standing[..., 0, :] = standing[:, :1, 0]  # the root stays: the lead is read along +z, here 0
+    np.testing.assert_allclose(strides(standing, (1, 2), 0), 0.0, atol=1e-12)
+
+
+def test_stride_figures_see_a_damped_stride_its_phase_and_the_hand() -> None:
+    real = _gait(0.6, 0.0, (0.6, 0.8))
+    same = stride_figures(real, real, (1, 2), [3], 0, 20.0)
+    assert same["stride_m"] == pytest.approx(0.6 / np.sqrt(2), abs=1e-3)  # a sine's std: amplitude / √2
+    assert same["phase_r"] == pytest.approx(1.0)
+    assert same["hand_speed_m_s"] == pytest.approx(0.5, abs=0.01)
+    damped = stride_figures(_gait(0.15, 0.5, (0.6, 0.8)), real, (1, 2), [3], 0, 20.0)
+    assert damped["stride_m"] == pytest.approx(0.15 / np.sqrt(2), abs=1e-3)
+    assert damped["phase_r"] == pytest.approx(-1.0)  # half a cycle out of phase
