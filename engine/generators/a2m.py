@@ -23,6 +23,7 @@ from engine.generators.base import (
     Generator,
     SampleRequest,
     check_psi,
+    check_strategy,
     refusal,
     require,
 )
@@ -34,7 +35,6 @@ from engine.train.windows import prepare_clips, windows_at
 
 ARCH = "a2m"
 #: How A2M draws codes: from its learned prior (the paper's), or from the bank's modes.
-STRATEGIES = ("prior", "mode_preserving", "conventional")
 
 
 @dataclass
@@ -231,8 +231,7 @@ class A2mGenerator(FolderGenerator):
                     z_t = torch.from_numpy(z).to(_device(self.loaded))
                     codes = self.loaded.model.z_to_codes(z_t).cpu().numpy().astype(np.float32)
             return self._samples(joints, codes, index, self._modes_of(codes, index), meta)
-        if strategy not in STRATEGIES and strategy != "mode":
-            raise ConfigError(f"unknown strategy {strategy!r}; choose from {', '.join(STRATEGIES)}")
+        check_strategy(strategy)
         require(self, "modes", f"sample {strategy.replace('_', '-')} codes from modes")
         modes = self.loaded.bank.modes.get(index)
         if modes is None:

@@ -31,8 +31,9 @@ EDIT_KEYS = ("style",)
 #: Bank codes decoded at once while fitting edit directions.
 DIRECTION_BATCH = 512
 
-#: Sampling strategies of a kind's bank modes (``SampleRequest.strategy``; "mode" samples ``request.mode``).
-MODE_STRATEGIES = ("mode_preserving", "conventional", "mode")
+#: Every ``SampleRequest.strategy`` a kind may take: its prior, then its bank modes' ("mode" samples
+#: ``request.mode``).
+SAMPLE_STRATEGIES = ("prior", "mode_preserving", "conventional", "mode")
 
 #: Every capability a kind may declare, with what it lets a user do (used in refusals and tooltips).
 CAPABILITIES: dict[str, str] = {
@@ -59,6 +60,12 @@ def check_psi(psi: float) -> None:
     """ConfigError unless ``psi`` is a finite truncation in [0, 2]."""
     if not np.isfinite(psi) or not 0.0 <= psi <= 2.0:
         raise ConfigError(f"truncation psi must lie in [0, 2], got {psi}")
+
+
+def check_strategy(strategy: str) -> None:
+    """ConfigError unless ``strategy`` is one of ``SAMPLE_STRATEGIES``."""
+    if strategy not in SAMPLE_STRATEGIES:
+        raise ConfigError(f"unknown strategy {strategy!r}; choose from {', '.join(SAMPLE_STRATEGIES)}")
 
 
 class CapabilityError(ConfigError):
@@ -133,7 +140,7 @@ class FolderGenerator:
     def strategies(self) -> tuple[str, ...]:
         """The ``SampleRequest.strategy`` names its ``sample`` takes, its default first: its prior, then,
         with modes, the bank's mode strategies."""
-        return ("prior", *(MODE_STRATEGIES if "modes" in self.capabilities else ()))
+        return SAMPLE_STRATEGIES if "modes" in self.capabilities else ("prior",)
 
     @property
     def root_height(self) -> float:

@@ -19,7 +19,14 @@ import torch
 
 from engine.errors import ConfigError
 from engine.generate import Sample, interpolation_codes
-from engine.generators.base import CodeSpace, FolderGenerator, Generator, SampleRequest, require
+from engine.generators.base import (
+    CodeSpace,
+    FolderGenerator,
+    Generator,
+    SampleRequest,
+    check_strategy,
+    require,
+)
 from engine.latent.bank import LatentBank
 from engine.model.dvgan import DvganConfig, DvganNetwork
 from engine.model.dvgan_features import feature_joints, motion_features
@@ -36,7 +43,6 @@ CHUNK = 256
 MAX_CONTEXT = 256
 #: Most frames one request may generate.
 MAX_FRAMES = 100_000
-STRATEGIES = ("prior", "mode_preserving", "conventional")
 
 
 @dataclass
@@ -228,18 +234,17 @@ class DvganGenerator(FolderGenerator):
         action = self.phrase(request.action)
         length = self._frames(frames)
         strategy = "mode" if request.mode is not None else (request.strategy or "prior")
+        check_strategy(strategy)
         rng = np.random.default_rng(request.seed)
         if strategy == "prior":
             codes = rng.standard_normal((request.n, self.code_space.size)).astype(np.float32)
-        elif strategy in STRATEGIES or strategy == "mode":
+        else:
             require(self, "modes", f"sample {strategy.replace('_', '-')} codes from modes")
             modes = self.loaded.bank.modes.get(self._index(action))
             if modes is None:
                 raise ConfigError(f"{self.path}: no modes for action {action!r}")
             codes, _ = modes.sample(request.n, rng, strategy=strategy, mode=request.mode)
             codes = np.asarray(codes, np.float32)
-        else:
-            raise ConfigError(f"unknown strategy {strategy!r}; choose from {', '.join(STRATEGIES)}")
         return self._samples(codes, action, request.seed, length, {"strategy": strategy})
 
     def decode(

@@ -18,7 +18,14 @@ import numpy as np
 
 from engine.errors import ConfigError
 from engine.generate import Sample, interpolation_codes
-from engine.generators.base import CodeSpace, FolderGenerator, Generator, SampleRequest, require
+from engine.generators.base import (
+    CodeSpace,
+    FolderGenerator,
+    Generator,
+    SampleRequest,
+    check_strategy,
+    require,
+)
 from engine.generators.modi_latent import (
     INVERT_STEPS,
     Inversion,
@@ -42,7 +49,6 @@ from engine.motion.skeleton import Skeleton
 
 ARCH = "modi"
 #: How MoDi draws codes: from its prior (z → w, the paper's), or from the bank's modes of a labelled action.
-STRATEGIES = ("prior", "mode_preserving", "conventional")
 
 
 @dataclass
@@ -212,8 +218,7 @@ class ModiGenerator(FolderGenerator):
             codes = sample_w(self.loaded.model, request.n, request.seed, psi)
             return self._samples(codes, 1.0, meta | {"strategy": "prior", "truncation": psi})
         chosen = "mode" if request.mode is not None else (strategy or "mode_preserving")
-        if chosen not in STRATEGIES and chosen != "mode":
-            raise ConfigError(f"unknown strategy {chosen!r}; choose from {', '.join(STRATEGIES)}")
+        check_strategy(chosen)
         require(self, "modes", f"sample {chosen.replace('_', '-')} codes of a labelled action")
         if request.action not in self.label_names:
             raise ConfigError(

@@ -16,10 +16,16 @@ import numpy as np
 import torch
 
 from engine.errors import ConfigError
-from engine.generators.a2m import STRATEGIES, A2mGenerator, LoadedA2m, generate_a2m
+from engine.generators.a2m import A2mGenerator, LoadedA2m, generate_a2m
 from engine.generators.base import SampleRequest, check_psi, require
 from engine.metrics.classifier import Classifier
-from engine.metrics.evaluate import check_compatible, evaluate_sets, reconstruction_metrics, report
+from engine.metrics.evaluate import (
+    EVAL_STRATEGIES,
+    check_compatible,
+    evaluate_sets,
+    reconstruction_metrics,
+    report,
+)
 from engine.metrics.features import canonical_windows, root_heights
 from engine.motion.motion import Motion
 from engine.train.windows import WindowBatch, crop_windows, prepare_clips
@@ -109,8 +115,9 @@ def evaluate_a2m(
     if repeats < 1 or n_per_action < 2:
         raise ConfigError(f"need repeats >= 1 and n_per_action >= 2, got {repeats}, {n_per_action}")
     check_psi(truncation)
-    if strategy not in STRATEGIES:
-        raise ConfigError(f"unknown strategy {strategy!r}; choose from {', '.join(STRATEGIES)}")
+    if strategy not in ("prior", *EVAL_STRATEGIES):
+        choices = ", ".join(("prior", *EVAL_STRATEGIES))
+        raise ConfigError(f"unknown strategy {strategy!r} for evaluation; choose from {choices}")
     if strategy != "prior":
         require(A2mGenerator(loaded), "modes", f"sample {strategy.replace('_', '-')} codes from modes")
     check_compatible(loaded, real_clips, classifier)
