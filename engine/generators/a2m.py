@@ -34,7 +34,6 @@ from engine.motion.motion import Motion
 from engine.train.windows import prepare_clips, windows_at
 
 ARCH = "a2m"
-#: How A2M draws codes: from its learned prior (the paper's), or from the bank's modes.
 
 
 @dataclass

@@ -48,7 +48,6 @@ from engine.motion.motion import Motion
 from engine.motion.skeleton import Skeleton
 
 ARCH = "modi"
-#: How MoDi draws codes: from its prior (z → w, the paper's), or from the bank's modes of a labelled action.
 
 
 @dataclass

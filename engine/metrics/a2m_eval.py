@@ -115,9 +115,9 @@ def evaluate_a2m(
     if repeats < 1 or n_per_action < 2:
         raise ConfigError(f"need repeats >= 1 and n_per_action >= 2, got {repeats}, {n_per_action}")
     check_psi(truncation)
-    if strategy not in ("prior", *EVAL_STRATEGIES):
-        choices = ", ".join(("prior", *EVAL_STRATEGIES))
-        raise ConfigError(f"unknown strategy {strategy!r} for evaluation; choose from {choices}")
+    choices = ("prior", *EVAL_STRATEGIES)
+    if strategy not in choices:
+        raise ConfigError(f"unknown strategy {strategy!r} for evaluation; choose from {', '.join(choices)}")
     if strategy != "prior":
         require(A2mGenerator(loaded), "modes", f"sample {strategy.replace('_', '-')} codes from modes")
     check_compatible(loaded, real_clips, classifier)
