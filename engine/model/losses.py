@@ -103,8 +103,9 @@ def shift_tolerant_mse(pred: Tensor, target: Tensor, mask: Tensor, span: int, ma
         error, frames = _window_span_errors(pred[:, a : a + n], target[:, b : b + n], both, max(span, 1))
         errors.append(torch.where(frames > 0, error / frames.clamp(min=1.0), torch.inf))
         weights.append(frames)
-    best = torch.stack(errors, 1).argmin(1, keepdim=True)
-    error = torch.stack(errors, 1).gather(1, best)[:, 0]
+    stacked = torch.stack(errors, 1)
+    best = stacked.argmin(1, keepdim=True)
+    error = stacked.gather(1, best)[:, 0]
     frames = torch.stack(weights, 1).gather(1, best)[:, 0]
     return torch.where(frames > 0, error * frames, 0.0).sum() / frames.sum().clamp(min=1.0)
 
