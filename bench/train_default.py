@@ -83,6 +83,12 @@ def parse_args() -> argparse.Namespace:
         help="frames the w_free term may shift each window in time to fit it (0: none)",
     )
     p.add_argument(
+        "--start-frames",
+        type=int,
+        default=3,
+        help="first frames of the free-running decode the w_start term compares (OdmoConfig.start_frames)",
+    )
+    p.add_argument(
         "--speed-span",
         type=int,
         default=0,
@@ -178,6 +184,7 @@ def main() -> int:
         speed_error=args.speed_error,
         free_span=args.free_span,
         free_shift=args.free_shift,
+        start_frames=args.start_frames,
         speed_span=args.speed_span,
         spectrum_span=args.spectrum_span,
         spectrum_legs=not args.spectrum_no_legs,
@@ -373,6 +380,11 @@ def model_switches(config: OdmoConfig) -> str:
         if config.free_shift:
             per += f", at the time shift of at most {config.free_shift} frames that fits each window best"
         parts.append(f"`w_free = {config.w_free:g}` (a reconstruction loss{per} on a free-running decode)")
+    if config.w_start > 0:
+        parts.append(
+            f"`w_start = {config.w_start:g}` (a loss on that decode's first {config.start_frames} "
+            "root-relative poses)"
+        )
     if config.w_speed > 0:
         what = "log " if config.speed_error == "log" else ""
         per = f"{config.speed_span}-frame span" if config.speed_span else "window"

@@ -35,6 +35,7 @@ _BEFORE_SWITCHES = {
     "mean_pose_init": False,
     "pose_output": "joints",
     "free_shift": 0,
+    "w_start": 0.0,
 }
 SCHEDULED_SAMPLING = ("one_step", "free_run")
 #: The paper's model in one setting, ``OdmoConfig(n_actions, n_joints, **PAPER)``: every project change off.
@@ -70,7 +71,9 @@ class OdmoConfig(ModelConfig):
     of the same codes (the decoder as it runs at sampling time, trained through its own poses; with
     ``free_span`` > 1 on the mean pose of each run of that many frames, leaving the motion within a run to
     the phase-free terms; with ``free_shift`` > 0 on root-relative poses at the time shift of at most that
-    many frames that fits each window best, so a decode out of phase with the data keeps its amplitude) and
+    many frames that fits each window best, so a decode out of phase with the data keeps its amplitude),
+    ``w_start`` the squared error of that decode's first ``start_frames`` root-relative poses (the decoder
+    keeps a gait it is started in, so the code must carry where in its cycle the motion starts) and
     ``w_speed`` the squared error of that decode's per-window mean joint speeds (which, unlike an L2
     loss on positions, does not reward a still mean pose when the phase is uncertain); both are off by
     default, measured in the README ("Where the model differs from the paper"). The skate and speed
@@ -149,6 +152,8 @@ class OdmoConfig(ModelConfig):
     w_free: float = 0.0
     free_span: int = 1
     free_shift: int = 0
+    w_start: float = 0.0
+    start_frames: int = 3
     w_speed: float = 0.0
     speed_error: str = "absolute"
     speed_span: int = 0
@@ -169,10 +174,12 @@ class OdmoConfig(ModelConfig):
 
     POSITIVE = ("n_actions", "n_joints", "window", "fps", "latent_dim", "enc_hidden", "enc_fc", "traj_hidden")
     POSITIVE += ("motion_hidden", "prior_sigma2", "lr", "batch_size", "epoch_size", "free_span")
+    POSITIVE += ("start_frames",)
     NON_NEGATIVE = ("w_recon", "w_traj", "w_consistency", "w_contrastive", "w_prior", "traj_y_weight")
     NON_NEGATIVE += ("w_raw", "w_contact", "w_velocity", "contrastive_pull", "epochs", "tf_decay_epochs")
     NON_NEGATIVE += ("w_skate", "w_free", "w_speed", "w_spectrum", "w_free_skate", "w_foot_height")
     NON_NEGATIVE += ("w_heading", "w_twist", "w_coordination", "speed_span", "spectrum_span", "free_shift")
+    NON_NEGATIVE += ("w_start",)
     RATES = ("tf_start", "tf_end")
     CHOICES: ClassVar[dict[str, tuple[str, ...]]] = {
         "train_precision": TRAIN_PRECISIONS,

@@ -31,6 +31,7 @@ LOSS_TERMS = (
     "heading",
     "twist",
     "coordination",
+    "start",
 )
 
 
@@ -108,6 +109,13 @@ def shift_tolerant_mse(pred: Tensor, target: Tensor, mask: Tensor, span: int, ma
     error = stacked.gather(1, best)[:, 0]
     frames = torch.stack(weights, 1).gather(1, best)[:, 0]
     return torch.where(frames > 0, error * frames, 0.0).sum() / frames.sum().clamp(min=1.0)
+
+
+def start_mse(pred: Tensor, target: Tensor, mask: Tensor, root: int, frames: int) -> Tensor:
+    """Squared error of the first ``frames`` root-relative poses of ``pred`` against ``target`` (B, T, J, 3)
+    over the real ones: where in its cycle a motion starts, and which way it moves."""
+    local, truth = (x[:, :frames] - x[:, :frames, root : root + 1] for x in (pred, target))
+    return masked_mse(local, truth, mask[:, :frames])
 
 
 def _real_pairs(mask: Tensor) -> Tensor:
@@ -417,6 +425,7 @@ def odmo_losses(
         "heading": zero,
         "twist": zero,
         "coordination": zero,
+        "start": zero,
     }
     twist_on = free_joints is not None and hips is not None and shoulders is not None
     if free_joints is not None:
@@ -425,6 +434,7 @@ def odmo_losses(
             terms["free"] = shift_tolerant_mse(local, truth, mask, config.free_span, config.free_shift)
         else:
             terms["free"] = span_mean_mse(free_joints, joints, mask, config.free_span)
+        terms["start"] = start_mse(free_joints, joints, mask, root, config.start_frames)
         log = config.speed_error == "log"
         terms["speed"] = speed_loss(free_joints, joints, mask, config.fps, root, log, config.speed_span)
         terms["spectrum"] = spectrum_loss(free_joints, joints, mask, root, spectrum_on, config.spectrum_span)
@@ -464,6 +474,7 @@ def odmo_losses(
         "heading": config.w_heading if free_joints is not None and hips is not None else 0.0,
         "twist": config.w_twist if twist_on else 0.0,
         "coordination": config.w_coordination if free_joints is not None else 0.0,
+        "start": config.w_start if free_joints is not None else 0.0,
     }
     terms["total"] = sum(weights[k] * terms[k] for k in LOSS_TERMS if weights[k] > 0)
     return terms

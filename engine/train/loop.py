@@ -114,6 +114,7 @@ def _forward(
         "w_heading",
         "w_twist",
         "w_coordination",
+        "w_start",
     )
     if any(getattr(config, name) > 0 for name in free_terms):
         free = out.joints if truth is None else model.decode_full(z, data.actions, end).joints

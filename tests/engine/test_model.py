@@ -35,6 +35,7 @@ from engine.model.losses import (
     spectrum_joints,
     spectrum_loss,
     speed_loss,
+    start_mse,
     twist_loss,
     velocity_gram,
 )
@@ -533,6 +534,50 @@ def test_the_free_term_shifts_root_relative_poses_when_asked() -> None:
     assert OdmoConfig.from_dict(plain.to_dict() | {"free_shift": 5}).free_shift == 5
     with pytest.raises(ConfigError, match="free_shift"):
         OdmoConfig(n_actions=2, n_joints=2, free_shift=-1)
+
+
+def test_the_start_term_compares_the_first_frames_about_the_root() -> None:
+    """A hand swinging a quarter cycle late costs its error over the first 3 frames only (from 0.1 m at
+    frame 0: sin −90°, −72°, −54° against sin 0°, 18°, 36°); a root moved away costs nothing; padded first
+    frames count for nothing; through ``odmo_losses`` it is weighted by ``w_start`` on the free decode."""
+    truth, late = _swing_at(0.0), _swing_at(0.25)
+    mask = torch.ones(1, 60, dtype=torch.bool)
+    expected = (
+        sum(
+            (0.1 * (math.sin(2 * math.pi * (t - 5) / 20) - math.sin(2 * math.pi * t / 20))) ** 2
+            for t in range(3)
+        )
+        / 3
+        / 6
+    )
+    assert float(start_mse(late, truth, mask, 0, 3)) == pytest.approx(expected, rel=1e-9)
+    away = late.clone()
+    away[:, :, :] += torch.tensor([3.0, 0.0, -2.0], dtype=torch.float64)
+    assert float(start_mse(away, truth, mask, 0, 3)) == pytest.approx(expected, rel=1e-9)
+    assert float(start_mse(late, truth, mask, 0, 60)) == pytest.approx(
+        float(masked_mse(late - late[:, :, :1], truth - truth[:, :, :1], mask))
+    )
+    padded = mask.clone()
+    padded[0, :3] = False
+    assert float(start_mse(late, truth, padded, 0, 3)) == 0.0
+    kw = {"mu": torch.zeros(2, 20), "logvar": torch.zeros(2, 20), "same": torch.tensor([True]), "root": 0}
+    kw |= {
+        "joints": truth.float().repeat(2, 1, 1, 1),
+        "trajectory": truth[:, :, 0].float().repeat(2, 1, 1),
+        "mask": mask.repeat(2, 1),
+    }
+    kw |= {
+        "pred_joints": truth.float().repeat(2, 1, 1, 1),
+        "pred_trajectory": truth[:, :, 0].float().repeat(2, 1, 1),
+        "free_joints": late.float().repeat(2, 1, 1, 1),
+    }
+    cfg = OdmoConfig(n_actions=2, n_joints=2, w_start=10.0, start_frames=3)
+    losses = odmo_losses(cfg, **kw)
+    assert float(losses["start"]) == pytest.approx(expected, rel=1e-5)
+    assert float(losses["total"]) == pytest.approx(10 * expected + float(losses["prior"]), rel=1e-4)
+    assert OdmoConfig.from_dict({k: v for k, v in cfg.to_dict().items() if k != "w_start"}).w_start == 0.0
+    with pytest.raises(ConfigError, match="start_frames"):
+        OdmoConfig(n_actions=2, n_joints=2, start_frames=0)
 
 
 def test_skate_loss_is_the_squared_speed_of_planted_feet() -> None:
