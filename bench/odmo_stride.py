@@ -1,15 +1,17 @@
 """Does an ODMO decoder keep the stride and the wave when it runs on its own poses (README, stop 40)?
 
     python bench/odmo_stride.py --data DATA --model resources/models/bandai2-odmo
-        [--actions walk run wave-right-hand] [--n 60]
+        [--actions walk run wave-right-hand] [--n 60] [--prime 2]
 
-Held-out windows of each action are encoded and decoded with their own codes and ends twice: running
-free (as sampling does) and teacher-forced (every previous pose taken from the real window; each frame
-is then a one-step prediction). Prints JSON per action: for the real windows and both decodes (before the
-foot clean-up), the stride (the first ankle's lead over the second along the window's travel: its std
-over frames, mean over windows), its per-window correlation with the real window's (how well the decode
-keeps the real phase) and the mean speed of the faster hand about the root. A decoder that keeps the
-stride teacher-forced and loses it running free damps its own motion.
+Held-out windows of each action are encoded and decoded with their own codes and ends three times:
+running free (as sampling does), teacher-forced (every previous pose taken from the real window; each
+frame is then a one-step prediction) and primed (the first ``--prime`` previous poses real, then free).
+Prints JSON per action: for the real windows and each decode (before the foot clean-up), the stride (the
+first ankle's lead over the second along the window's travel: its std over frames, mean over windows),
+its per-window correlation with the real window's (how well the decode keeps the real phase) and the
+mean speed of the faster hand about the root. A decoder that keeps the stride teacher-forced and loses
+it running free either damps its own motion or never starts it: a primed decode that keeps it says
+which (README, stop 41).
 """
 
 from __future__ import annotations
@@ -28,6 +30,7 @@ if __package__ in (None, ""):
 from bench.heldout import heldout_split
 from engine.generate import bank_window, encode_clips
 from engine.generate._decode import display_lift, ready_model
+from engine.model.odmo import OdmoModel
 from engine.modelio import load_model
 from engine.motion.contact import hand_joints, leg_chains
 from engine.motion.datasets import load_folder
@@ -61,6 +64,22 @@ def stride_figures(
     }
 
 
+def primed_decode(
+    model: OdmoModel,
+    z: torch.Tensor,
+    actions: torch.Tensor,
+    ends: torch.Tensor,
+    truth: torch.Tensor,
+    frames: int,
+) -> torch.Tensor:
+    """Joints (B, T, J, 3) of ``model`` decoding codes ``z`` whose previous poses are the real ``truth``
+    (B, T, J, 3) for its first ``frames`` frames and its own after (0: the free decode; T: teacher-forced)."""
+    previous = truth.clone()
+    for t in range(frames, truth.shape[1] - 1):
+        previous[:, t] = model.decode_full(z, actions, ends, prev_truth=previous, tf_rate=1.0).raw[:, t]
+    return model.decode_full(z, actions, ends, prev_truth=previous, tf_rate=1.0).joints
+
+
 def main() -> int:
     """Print the figures per action."""
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -68,6 +87,9 @@ def main() -> int:
     p.add_argument("--model", required=True, type=Path)
     p.add_argument("--actions", nargs="+", default=["walk", "run", "wave-right-hand"])
     p.add_argument("--n", type=int, default=60)
+    p.add_argument(
+        "--prime", type=int, default=2, help="real previous poses before a primed decode runs free"
+    )
     args = p.parse_args()
     torch.set_num_threads(1)
     loaded = load_model(args.model)
@@ -89,7 +111,9 @@ def main() -> int:
         with torch.inference_mode():
             free = model.decode_full(z, a, e).joints.numpy() + lift
             forced = model.decode_full(z, a, e, prev_truth=truth, tf_rate=1.0).joints.numpy() + lift
-        sets = {"real": real, "free": free.reshape(real.shape), "forced": forced.reshape(real.shape)}
+            primed = primed_decode(model, z, a, e, truth, args.prime).numpy() + lift
+        sets = {"real": real, "free": free, "forced": forced, f"primed_{args.prime}": primed}
+        sets = {k: js.reshape(real.shape) for k, js in sets.items()}
         figures = {k: stride_figures(js, real, ankles, hands, root, loaded.fps) for k, js in sets.items()}
         report[action] = {"n": len(windows)} | figures
     print(json.dumps({"model": args.model.name, **report}, indent=1))

@@ -4,8 +4,11 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+import torch
 
-from bench.odmo_stride import stride_figures, strides
+from bench.odmo_stride import primed_decode, stride_figures, strides
+from engine.model.config import OdmoConfig
+from engine.model.odmo import OdmoModel
 
 
 def _gait(amplitude: float, phase: float, direction: tuple[float, float], frames: int = 40) -> np.ndarray:
@@ -42,3 +45,21 @@ def test_stride_figures_see_a_damped_stride_its_phase_and_the_hand() -> None:
     damped = stride_figures(_gait(0.15, 0.5, (0.6, 0.8)), real, (1, 2), [3], 0, 20.0)
     assert damped["stride_m"] == pytest.approx(0.15 / np.sqrt(2), abs=1e-3)
     assert damped["phase_r"] == pytest.approx(-1.0)  # half a cycle out of phase
+
+
+def test_a_decode_primed_with_no_frame_runs_free_and_with_every_frame_is_teacher_forced() -> None:
+    """An untrained model's primed decode: 0 real frames is its free decode, the whole window its
+    teacher-forced one, 5 frames the teacher-forced one up to frame 5 and its own after."""
+    model = OdmoModel(OdmoConfig(n_actions=2, n_joints=4, window=12), seed=3).eval()
+    generator = torch.Generator().manual_seed(0)
+    z = torch.randn(3, 20, generator=generator)
+    actions, ends = torch.tensor([0, 1, 1]), torch.randn(3, 3, generator=generator)
+    truth = torch.randn(3, 12, 4, 3, generator=generator)
+    with torch.no_grad():
+        free = model.decode_full(z, actions, ends).joints
+        forced = model.decode_full(z, actions, ends, prev_truth=truth, tf_rate=1.0).joints
+        torch.testing.assert_close(primed_decode(model, z, actions, ends, truth, 0), free, atol=1e-5, rtol=0)
+        torch.testing.assert_close(primed_decode(model, z, actions, ends, truth, 12), forced)
+        five = primed_decode(model, z, actions, ends, truth, 5)
+    torch.testing.assert_close(five[:, :6], forced[:, :6])
+    assert float((five[:, 6:] - forced[:, 6:]).abs().max()) > 1e-3
