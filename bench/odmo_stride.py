@@ -9,9 +9,10 @@ frame is then a one-step prediction) and primed (the first ``--prime`` previous 
 Prints JSON per action: for the real windows and each decode (before the foot clean-up), the stride (the
 first ankle's lead over the second along the window's travel: its std over frames, mean over windows),
 its per-window correlation with the real window's (how well the decode keeps the real phase) and the
-mean speed of the faster hand about the root. A decoder that keeps the stride teacher-forced and loses
-it running free either damps its own motion or never starts it: a primed decode that keeps it says
-which (README, stop 41).
+mean speed of the faster hand about the root; and how far the teacher-forced decode moves (mean over
+joints, and over the hands) when the previous poses are another window's (how much it reads them). A
+decoder that keeps the stride teacher-forced and loses it running free either damps its own motion or
+never starts it: a primed decode that keeps it says which (README, stop 41).
 """
 
 from __future__ import annotations
@@ -112,10 +113,20 @@ def main() -> int:
             free = model.decode_full(z, a, e).joints.numpy() + lift
             forced = model.decode_full(z, a, e, prev_truth=truth, tf_rate=1.0).joints.numpy() + lift
             primed = primed_decode(model, z, a, e, truth, args.prime).numpy() + lift
+            swapped = (
+                model.decode_full(z, a, e, prev_truth=truth.roll(1, 0), tf_rate=1.0).joints.numpy() + lift
+            )
         sets = {"real": real, "free": free, "forced": forced, f"primed_{args.prime}": primed}
         sets = {k: js.reshape(real.shape) for k, js in sets.items()}
         figures = {k: stride_figures(js, real, ankles, hands, root, loaded.fps) for k, js in sets.items()}
-        report[action] = {"n": len(windows)} | figures
+        effect = np.linalg.norm(forced.reshape(real.shape) - swapped.reshape(real.shape), axis=-1).mean(
+            (0, 1)
+        )
+        reads = {
+            "previous_pose_effect_m": round(float(effect.mean()), 4),
+            "on_hands": round(float(effect[hands].mean()), 4),
+        }
+        report[action] = {"n": len(windows)} | figures | reads
     print(json.dumps({"model": args.model.name, **report}, indent=1))
     return 0
 
