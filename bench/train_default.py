@@ -38,7 +38,14 @@ from engine.generate import interpolate
 from engine.metrics.classifier import load_classifier, train_classifier
 from engine.metrics.evaluate import evaluate
 from engine.metrics.smoothness import max_frame_jump
-from engine.model.config import COORDINATION_ON, FREE_SKATE_CONTACTS, POSE_OUTPUTS, SPEED_ERRORS, OdmoConfig
+from engine.model.config import (
+    COORDINATION_ON,
+    FREE_SKATE_CONTACTS,
+    POSE_OUTPUTS,
+    POSE_UPDATES,
+    SPEED_ERRORS,
+    OdmoConfig,
+)
 from engine.modelio import load_model
 from engine.motion.datasets import load_folder
 from engine.motion.resample import resample_motion
@@ -132,6 +139,13 @@ def parse_args() -> argparse.Namespace:
         help="what the pose decoder emits: joint positions, or local rotations (OdmoConfig.pose_output)",
     )
     p.add_argument(
+        "--pose-update",
+        choices=POSE_UPDATES,
+        default="absolute",
+        help="a joint decoder's poses afresh each frame, or as steps from the previous pose "
+        "(OdmoConfig.pose_update)",
+    )
+    p.add_argument(
         "--traj-y-weight",
         type=float,
         default=1.0,
@@ -193,6 +207,7 @@ def main() -> int:
         root_velocity_input=args.root_velocity_input,
         mean_pose_init=args.mean_pose_init,
         pose_output=args.pose_output,
+        pose_update=args.pose_update,
         traj_y_weight=args.traj_y_weight,
         **weights,
     )
@@ -367,6 +382,8 @@ def model_switches(config: OdmoConfig) -> str:
         )
     elif config.bone_projection:
         parts.append("`bone_projection` (decoded joints lie on the skeleton's bone lengths by construction)")
+    if config.pose_update == "residual":
+        parts.append("`pose_update = residual` (each frame's pose a step from the previous one)")
     if config.foot_contact:
         parts.append(
             "`foot_contact` (a foot-contact head and loss; planted feet pinned to the floor at decode time)"

@@ -36,6 +36,7 @@ _BEFORE_SWITCHES = {
     "pose_output": "joints",
     "free_shift": 0,
     "w_start": 0.0,
+    "pose_update": "absolute",
 }
 SCHEDULED_SAMPLING = ("one_step", "free_run")
 #: The paper's model in one setting, ``OdmoConfig(n_actions, n_joints, **PAPER)``: every project change off.
@@ -45,6 +46,7 @@ SPEED_ERRORS = ("absolute", "log")
 FREE_SKATE_CONTACTS = ("data", "own")
 COORDINATION_ON = ("all", "legs")
 POSE_OUTPUTS = ("joints", "rotations")
+POSE_UPDATES = ("absolute", "residual")
 
 
 @dataclass
@@ -104,7 +106,10 @@ class OdmoConfig(ModelConfig):
     mean local rotations). ``pose_output`` "rotations" has the pose decoder emit each joint's local
     rotation (6D) and places the joints by forward kinematics on the skeleton (bone lengths and the
     girdles' shapes hold by construction; ``bone_projection`` is then unused); it reads back the joints
-    as the "joints" decoder does, and needs ``root_relative_poses``.
+    as the "joints" decoder does, and needs ``root_relative_poses``. ``pose_update`` "residual" has a
+    joint decoder emit each frame as a step from the previous pose, from a learned start pose (the
+    paper's emits every pose afresh, and a decoder that does not read a joint's previous position, as the
+    waves' hands measured in the README, holds it still at its mean).
     ``scheduled_sampling`` says where the non-teacher-forced previous poses come from: "one_step" (a
     teacher-forced pass, the default) or "free_run" (a free-running decode, as the reference's per-step
     loop does; measured worse on the bundled recipe, see the README).
@@ -170,6 +175,7 @@ class OdmoConfig(ModelConfig):
     root_velocity_input: bool = False
     mean_pose_init: bool = False
     pose_output: str = "joints"
+    pose_update: str = "absolute"
     arch: str = "odmo"
 
     POSITIVE = ("n_actions", "n_joints", "window", "fps", "latent_dim", "enc_hidden", "enc_fc", "traj_hidden")
@@ -187,6 +193,7 @@ class OdmoConfig(ModelConfig):
         "free_skate_contacts": FREE_SKATE_CONTACTS,
         "coordination_on": COORDINATION_ON,
         "pose_output": POSE_OUTPUTS,
+        "pose_update": POSE_UPDATES,
         "scheduled_sampling": SCHEDULED_SAMPLING,
     }
     ARCH = "odmo"
@@ -196,6 +203,8 @@ class OdmoConfig(ModelConfig):
         """Contrastive pairs and foot joints."""
         if self.pose_output == "rotations" and not self.root_relative_poses:
             raise ConfigError("pose_output 'rotations' needs root_relative_poses (the root is its path)")
+        if self.pose_update == "residual" and self.pose_output != "joints":
+            raise ConfigError("pose_update 'residual' steps joint positions: it needs pose_output 'joints'")
         if self.batch_size < 2:
             raise ConfigError("batch_size must be at least 2 (windows come in contrastive pairs)")
         try:

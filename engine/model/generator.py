@@ -36,23 +36,28 @@ def _free_run_loop(
     w_ih: list[Tensor],
     w_hh: list[Tensor],
     bias: list[Tensor],
+    start: Tensor,
+    residual: bool,
 ) -> Tensor:
     """Top-layer hidden states (B, T, H) of the free-running decoder (TorchScript-compatible).
 
     ``const`` (B, T, H) is the pose-free part of each frame's input projection, ``bias_next`` (H,) what
     the previous pose's output bias adds to it, ``h0`` / ``c0`` (L, B, H) the initial state, ``fused``
     (H, H) the transposed product W_pose·W_out, ``slope`` the PReLU weight; per layer ``w_ih`` (in, 4H)
-    and ``w_hh`` (H, 4H) are transposed and ``bias`` (4H,) summed, laid out by ``_loop_gates``.
+    and ``w_hh`` (H, 4H) are transposed and ``bias`` (4H,) summed, laid out by ``_loop_gates``. ``start``
+    (H,) is what frame 0's previous pose adds to its input; with ``residual`` each frame's output is a
+    step from the previous pose, so the pose terms add up.
     """
     h = [h0[k] for k in range(len(w_ih))]
     c = [c0[k] for k in range(len(w_ih))]
-    steps = (const + bias_next).transpose(0, 1).contiguous().unbind(0)
+    frames = const.transpose(0, 1).contiguous().unbind(0)
     tops: list[Tensor] = []
-    x = const[:, 0]
-    for t in range(len(steps)):
+    pose_term = start.expand(const.shape[0], -1)
+    for t in range(len(frames)):
         if t > 0:
-            x = torch.addmm(steps[t], h[-1], fused)
-        tops.append(_cell_stack(F.prelu(x, slope), h, c, w_ih, w_hh, bias))
+            output_term = torch.addmm(bias_next, h[-1], fused)  # W_pose·(previous frame's output)
+            pose_term = pose_term + output_term if residual else output_term
+        tops.append(_cell_stack(F.prelu(frames[t] + pose_term, slope), h, c, w_ih, w_hh, bias))
     return torch.stack(tops, dim=1)
 
 
@@ -145,7 +150,9 @@ class MotionGenerator(nn.Module):
     its initial state. With ``rotations`` the output layer emits each joint's local rotation (6D; the
     root's is its global one) and the pose is the skeleton's forward kinematics from a root at the
     origin (``attach_skeleton`` first; it needs ``relative``): bone lengths hold by construction. The
-    decoder still reads back joint positions.
+    decoder still reads back joint positions. With ``residual`` (joints only) each frame's output is a
+    step added to the previous pose, and frame 0's previous pose is a learned start pose: a joint the
+    decoder does not move stays where it was instead of falling back to a pose of its own.
     """
 
     def __init__(
@@ -159,10 +166,14 @@ class MotionGenerator(nn.Module):
         velocity_input: bool = False,
         fps: float = 20.0,
         rotations: bool = False,
+        residual: bool = False,
     ):
         super().__init__()
         if rotations and not relative:
             raise ValueError("a rotation decoder places joints about the root: it needs relative poses")
+        if rotations and residual:
+            raise ValueError("a residual decoder steps joint positions: it cannot emit rotations")
+        self.residual = residual
         self.rotations = rotations
         self.n_joints = n_joints
         self.free_running_samples = free_running_samples
@@ -178,6 +189,7 @@ class MotionGenerator(nn.Module):
         self.embed_act = nn.PReLU()
         self.lstm = nn.LSTM(hidden, hidden, num_layers=2, batch_first=True)
         self.out = nn.Linear(hidden, n_joints * 6 if rotations else self.pose_dim)
+        self.start = nn.Parameter(torch.zeros(self.pose_dim)) if residual else None
         self.register_buffer("fk_offsets", torch.zeros(n_joints, 3), persistent=False)
         self.fk_parents: tuple[int, ...] | None = None
         steps = torch.arange(window, dtype=torch.float32) / window
@@ -224,7 +236,14 @@ class MotionGenerator(nn.Module):
         ``prev`` (B, T, J·3), in one LSTM call."""
         emb = self.embed_act(const + F.linear(prev, self.embed.weight[:, : self.pose_dim]))
         out, _ = self.lstm(emb, state)
-        return self._pose(self.out(out).float()), out  # float32 under autocast too
+        poses = self._pose(self.out(out).float())  # float32 under autocast too
+        return (prev + poses if self.residual else poses), out
+
+    def _first_previous(self, n: int) -> Tensor:
+        """Frame 0's previous pose (n, J·3): zero, or with ``residual`` the learned start pose."""
+        if self.start is None:
+            return self.embed.weight.new_zeros(n, self.pose_dim)
+        return self._readback(self.start).expand(n, -1)
 
     def forward(
         self,
@@ -252,7 +271,8 @@ class MotionGenerator(nn.Module):
             poses, hidden = self._free_run(const, state)
             return self._absolute(poses, trajectory), hidden
         gt = self._readback(truth.reshape(b, self.window, self.pose_dim))
-        prev = torch.cat([gt.new_zeros(b, 1, self.pose_dim), gt[:, :-1]], dim=1)
+        start = self._first_previous(b).to(gt.dtype).unsqueeze(1)
+        prev = torch.cat([start, gt[:, :-1]], dim=1)
         if tf_rate < 1.0:
             with torch.no_grad():
                 guess = (
@@ -265,7 +285,7 @@ class MotionGenerator(nn.Module):
                 tf_noise = torch.rand(b, self.window - 1, 1, generator=generator, device=gt.device)
             keep = tf_noise < tf_rate
             mixed = torch.where(keep, gt[:, :-1], first[:, :-1])
-            prev = torch.cat([gt.new_zeros(b, 1, self.pose_dim), mixed], dim=1)
+            prev = torch.cat([start, mixed], dim=1)
         poses, hidden = self._run(prev, const, state)
         return self._absolute(poses, trajectory), hidden
 
@@ -336,8 +356,13 @@ class MotionGenerator(nn.Module):
                 args = (w_pose, w_out, b_out, slope, w_ih, w_hh, bias, self.fk_offsets, *levels)
                 return _compiled(_free_run_fk_loop)(const.float(), h0, c0, *args)
             fused, bias_next, slope, w_ih, w_hh, bias = self._step_weights()
-            tops = _compiled(_free_run_loop)(const.float(), bias_next, h0, c0, fused, slope, w_ih, w_hh, bias)
-            return self.out(tops), tops
+            first = self._first_previous(1)
+            start = F.linear(first, self.embed.weight[:, : self.pose_dim])[0]
+            args = (fused, slope, w_ih, w_hh, bias, start, self.residual)
+            tops = _compiled(_free_run_loop)(const.float(), bias_next, h0, c0, *args)
+            if not self.residual:
+                return self.out(tops), tops
+            return first.unsqueeze(1) + self._readback(self.out(tops)).cumsum(dim=1), tops
 
     def _fk_levels(self) -> FkLevels:
         """The attached skeleton's depth levels, on the decoder's device."""

@@ -293,9 +293,14 @@ def start_at_mean_pose(model: OdmoModel, prepared: PreparedClips, train_idx: np.
     else:
         frames = centre_frames(prepared, train_idx)
         mean = (frames - frames[:, :1] if model.config.root_relative_poses else frames).mean(axis=0)
-    out = model.motion_gen.out
+    out, start = model.motion_gen.out, model.motion_gen.start
     out.weight.mul_(MEAN_POSE_WEIGHT_SCALE)
-    out.bias.copy_(torch.as_tensor(mean.reshape(-1), dtype=out.bias.dtype, device=out.bias.device))
+    mean = torch.as_tensor(mean.reshape(-1), dtype=out.bias.dtype, device=out.bias.device)
+    if start is None:
+        out.bias.copy_(mean)
+    else:  # a residual decoder's output is a step: it starts still, at the mean pose
+        out.bias.zero_()
+        start.copy_(mean)
 
 
 def with_feet(config: OdmoConfig, prepared: PreparedClips, train_idx: np.ndarray) -> OdmoConfig:

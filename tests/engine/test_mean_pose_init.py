@@ -63,6 +63,16 @@ def test_the_output_bias_is_the_mean_root_centred_pose_of_the_windows(real) -> N
     assert got[left, 0] - got[right, 0] > 0.1  # real hips, facing +z: the left one at +x
 
 
+def test_a_residual_decoder_starts_still_at_the_mean_pose(real) -> None:
+    """Its start pose is the mean root-centred pose and its output (a step) is zero-biased."""
+    model = OdmoModel(_config(real, mean_pose_init=True, pose_update="residual"), seed=0)
+    start_at_mean_pose(model, real, np.arange(real.n_clips))
+    reference = OdmoModel(_config(real, mean_pose_init=True), seed=0)
+    start_at_mean_pose(reference, real, np.arange(real.n_clips))
+    torch.testing.assert_close(model.motion_gen.start, reference.motion_gen.out.bias)
+    assert float(model.motion_gen.out.bias.detach().abs().max()) == 0.0
+
+
 def test_every_seed_starts_with_its_hips_on_their_sides_only_with_mean_pose_init(real) -> None:
     started = [_crossed_share(real, s, True, output) for s in SEEDS for output in ("joints", "rotations")]
     assert max(started) == 0.0

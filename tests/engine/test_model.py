@@ -74,7 +74,8 @@ def _reference_free_run(
     """Free-running decode written the plain way: one nn.LSTM call per frame on the concatenated input.
 
     A root-relative decoder reads back its output minus its root joint; the trajectory is the root. A
-    decoder with ``velocity_input`` also reads the trajectory's step into each frame, in m/s.
+    decoder with ``velocity_input`` also reads the trajectory's step into each frame, in m/s. A residual
+    decoder adds its output to the previous pose, which at frame 0 is its start pose.
     """
     gen = model.motion_gen
     n, t_len = z.shape[0], gen.window
@@ -82,13 +83,16 @@ def _reference_free_run(
     traj = model.traj_gen(cond, end)
     _, state = gen.traj_lstm(gen.traj_embed(traj))
     prev, poses = torch.zeros(n, gen.pose_dim), []
+    if gen.residual:
+        start = gen.start.view(-1, 3)
+        prev = (start - start[:1] if gen.relative else start).flatten().expand(n, -1)
     for t in range(t_len):
         x = torch.cat([prev, cond, torch.full((n, 1), t / t_len)], dim=1)
         if gen.velocity_input:
             step = traj[:, t] - traj[:, t - 1] if t > 0 else torch.zeros(n, 3)
             x = torch.cat([x, step * model.config.fps], dim=1)
         out, state = gen.lstm(gen.embed_act(gen.embed(x))[:, None], state)
-        pose = gen.out(out[:, 0]).view(n, -1, 3)
+        pose = (gen.out(out[:, 0]) + (prev if gen.residual else 0.0)).view(n, -1, 3)
         if gen.relative:
             pose = pose - pose[:, :1]
         prev = pose.flatten(1)
@@ -97,9 +101,23 @@ def _reference_free_run(
     return joints + traj.unsqueeze(2) if gen.relative else joints
 
 
-@pytest.mark.parametrize(("relative", "velocity"), [(True, False), (False, False), (True, True)])
-def test_free_running_decode_matches_a_step_by_step_nn_lstm_loop(relative: bool, velocity: bool) -> None:
-    model = _model(root_relative_poses=relative, root_velocity_input=velocity, fps=30.0).eval()
+@pytest.mark.parametrize(
+    ("relative", "velocity", "update"),
+    [
+        (True, False, "absolute"),
+        (False, False, "absolute"),
+        (True, True, "absolute"),
+        (True, False, "residual"),
+    ],
+)
+def test_free_running_decode_matches_a_step_by_step_nn_lstm_loop(
+    relative: bool, velocity: bool, update: str
+) -> None:
+    model = _model(root_relative_poses=relative, root_velocity_input=velocity, fps=30.0, pose_update=update)
+    model.eval()
+    if update == "residual":
+        with torch.no_grad():
+            model.motion_gen.start.normal_(generator=torch.Generator().manual_seed(0))
     assert model.motion_gen.embed.in_features == J * 3 + 3 * 20 + 1 + (3 if velocity else 0)
     z, action, end = torch.randn(4, 20), torch.tensor([0, 1, 2, 1]), torch.randn(4, 3)
     with torch.no_grad():
@@ -108,10 +126,12 @@ def test_free_running_decode_matches_a_step_by_step_nn_lstm_loop(relative: bool,
     torch.testing.assert_close(joints, expected, atol=1e-5, rtol=1e-5)
 
 
-@pytest.mark.parametrize("velocity", [False, True])
-def test_free_running_decode_trains_like_the_step_by_step_loop(velocity: bool) -> None:
+@pytest.mark.parametrize(
+    ("velocity", "update"), [(False, "absolute"), (True, "absolute"), (False, "residual")]
+)
+def test_free_running_decode_trains_like_the_step_by_step_loop(velocity: bool, update: str) -> None:
     """The free-running loss terms backpropagate through the fused loop: same gradients as nn.LSTM steps."""
-    model = _model(root_velocity_input=velocity).train()
+    model = _model(root_velocity_input=velocity, pose_update=update).train()
     z, action, end = torch.randn(3, 20), torch.tensor([0, 1, 2]), torch.randn(3, 3)
     target = torch.randn(3, T, J, 3)
     grads = []
@@ -123,6 +143,7 @@ def test_free_running_decode_trains_like_the_step_by_step_loop(velocity: bool) -
         (decode() - target).square().mean().backward()
         grads.append({n: p.grad.clone() for n, p in model.named_parameters() if p.grad is not None})
     assert grads[0].keys() == grads[1].keys() and any(n.startswith("motion_gen.lstm") for n in grads[0])
+    assert ("motion_gen.start" in grads[0]) == (update == "residual")
     for name, grad in grads[0].items():
         torch.testing.assert_close(grad, grads[1][name], atol=1e-5, rtol=1e-4, msg=name)
 
@@ -137,7 +158,8 @@ def test_fast_decode_matches_the_reference_loop_at_default_sizes(batch: int) -> 
     torch.testing.assert_close(joints, expected, atol=1e-5, rtol=1e-5)
 
 
-def test_compiled_and_eager_decoder_loops_agree() -> None:
+@pytest.mark.parametrize("residual", [False, True])
+def test_compiled_and_eager_decoder_loops_agree(residual: bool) -> None:
     model = _model().eval()
     gen = model.motion_gen
     z, action, end = torch.randn(3, 20), torch.tensor([0, 1, 2]), torch.randn(3, 3)
@@ -145,7 +167,8 @@ def test_compiled_and_eager_decoder_loops_agree() -> None:
         cond = model.condition(z, action)
         state, const = gen._context(model.traj_gen(cond, end), cond)
         fused, bias_next, slope, w_ih, w_hh, bias = gen._step_weights()
-        args = (const, bias_next, state[0], state[1], fused, slope, w_ih, w_hh, bias)
+        start = torch.randn(const.shape[-1])
+        args = (const, bias_next, state[0], state[1], fused, slope, w_ih, w_hh, bias, start, residual)
         eager = generator_module._free_run_loop(*args)
         compiled = generator_module._compiled(generator_module._free_run_loop)(*args)
     torch.testing.assert_close(compiled, eager, atol=1e-6, rtol=1e-6)
@@ -534,6 +557,38 @@ def test_the_free_term_shifts_root_relative_poses_when_asked() -> None:
     assert OdmoConfig.from_dict(plain.to_dict() | {"free_shift": 5}).free_shift == 5
     with pytest.raises(ConfigError, match="free_shift"):
         OdmoConfig(n_actions=2, n_joints=2, free_shift=-1)
+
+
+def test_a_residual_decoder_that_emits_nothing_holds_the_previous_pose() -> None:
+    """Output layer at zero: teacher-forced, each frame is the real previous frame about the generated root
+    (frame 0 the start pose); free-running, every frame is the start pose. An absolute decoder with the
+    same weights puts every joint on the root. Rotations cannot step; the switch is saved and checked."""
+    model = _model(pose_update="residual").eval()
+    gen = model.motion_gen
+    with torch.no_grad():
+        gen.out.weight.zero_()
+        gen.out.bias.zero_()
+        gen.start.copy_(torch.arange(J * 3, dtype=torch.float32) / 10)
+    z, action, end = torch.randn(2, 20), torch.tensor([0, 2]), torch.randn(2, 3)
+    truth = torch.randn(2, T, J, 3)
+    with torch.no_grad():
+        forced, traj = model.decode(z, action, end, prev_truth=truth, tf_rate=1.0)
+        free, _ = model.decode(z, action, end)
+    about_root = forced - traj.unsqueeze(2)
+    start = gen.start.view(J, 3) - gen.start.view(J, 3)[:1]
+    torch.testing.assert_close(about_root[:, 1:], (truth - truth[:, :, :1])[:, :-1])
+    torch.testing.assert_close(about_root[:, 0], start.expand(2, J, 3))
+    torch.testing.assert_close(free - traj.unsqueeze(2), start.expand(2, T, J, 3))
+    absolute = _model().eval()
+    absolute.load_state_dict({k: v for k, v in model.state_dict().items() if k != "motion_gen.start"})
+    with torch.no_grad():
+        flat, flat_traj = absolute.decode(z, action, end)
+    torch.testing.assert_close(flat, flat_traj.unsqueeze(2).expand(2, T, J, 3))
+    assert OdmoConfig.from_dict(model.config.to_dict()).pose_update == "residual"
+    with pytest.raises(ConfigError, match="pose_update"):
+        OdmoConfig(n_actions=2, n_joints=J, pose_update="residual", pose_output="rotations")
+    with pytest.raises(ConfigError, match="pose_update"):
+        OdmoConfig(n_actions=2, n_joints=J, pose_update="sideways")
 
 
 def test_the_start_term_compares_the_first_frames_about_the_root() -> None:
