@@ -50,14 +50,17 @@ def _free_run_loop(
     """
     h = [h0[k] for k in range(len(w_ih))]
     c = [c0[k] for k in range(len(w_ih))]
-    frames = const.transpose(0, 1).contiguous().unbind(0)
+    steps = (const + bias_next).transpose(0, 1).contiguous().unbind(0)
     tops: list[Tensor] = []
     pose_term = start.expand(const.shape[0], -1)
-    for t in range(len(frames)):
-        if t > 0:
-            output_term = torch.addmm(bias_next, h[-1], fused)  # W_pose·(previous frame's output)
-            pose_term = pose_term + output_term if residual else output_term
-        tops.append(_cell_stack(F.prelu(frames[t] + pose_term, slope), h, c, w_ih, w_hh, bias))
+    x = const[:, 0] + pose_term
+    for t in range(len(steps)):
+        if t > 0 and residual:  # W_pose·(previous pose + previous output)
+            pose_term = torch.addmm(pose_term + bias_next, h[-1], fused)
+            x = const[:, t] + pose_term
+        elif t > 0:
+            x = torch.addmm(steps[t], h[-1], fused)
+        tops.append(_cell_stack(F.prelu(x, slope), h, c, w_ih, w_hh, bias))
     return torch.stack(tops, dim=1)
 
 
