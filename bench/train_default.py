@@ -146,6 +146,11 @@ def parse_args() -> argparse.Namespace:
         "(OdmoConfig.pose_update)",
     )
     p.add_argument(
+        "--encoder-reverse",
+        action="store_true",
+        help="the LMP encoder reads each window backwards (OdmoConfig.encoder_reverse)",
+    )
+    p.add_argument(
         "--traj-y-weight",
         type=float,
         default=1.0,
@@ -208,6 +213,7 @@ def main() -> int:
         mean_pose_init=args.mean_pose_init,
         pose_output=args.pose_output,
         pose_update=args.pose_update,
+        encoder_reverse=args.encoder_reverse,
         traj_y_weight=args.traj_y_weight,
         **weights,
     )
@@ -382,6 +388,8 @@ def model_switches(config: OdmoConfig) -> str:
         )
     elif config.bone_projection:
         parts.append("`bone_projection` (decoded joints lie on the skeleton's bone lengths by construction)")
+    if config.encoder_reverse:
+        parts.append("`encoder_reverse` (the LMP encoder reads each window from its end back to its start)")
     if config.pose_update == "residual":
         parts.append("`pose_update = residual` (each frame's pose a step from the previous one)")
     if config.foot_contact:

@@ -37,6 +37,7 @@ _BEFORE_SWITCHES = {
     "free_shift": 0,
     "w_start": 0.0,
     "pose_update": "absolute",
+    "encoder_reverse": False,
 }
 SCHEDULED_SAMPLING = ("one_step", "free_run")
 #: The paper's model in one setting, ``OdmoConfig(n_actions, n_joints, **PAPER)``: every project change off.
@@ -109,7 +110,9 @@ class OdmoConfig(ModelConfig):
     as the "joints" decoder does, and needs ``root_relative_poses``. ``pose_update`` "residual" has a
     joint decoder emit each frame as a step from the previous pose, from a learned start pose (the
     paper's emits every pose afresh, and a decoder that does not read a joint's previous position, as the
-    waves' hands measured in the README, holds it still at its mean).
+    waves' hands measured in the README, holds it still at its mean). ``encoder_reverse`` has the LMP
+    encoder read each window backwards, ending at its first frame: the paper's forward LSTM ends at the
+    last frame, and its codes say little of where the window starts, which the decoder must produce first.
     ``scheduled_sampling`` says where the non-teacher-forced previous poses come from: "one_step" (a
     teacher-forced pass, the default) or "free_run" (a free-running decode, as the reference's per-step
     loop does; measured worse on the bundled recipe, see the README).
@@ -176,6 +179,7 @@ class OdmoConfig(ModelConfig):
     mean_pose_init: bool = False
     pose_output: str = "joints"
     pose_update: str = "absolute"
+    encoder_reverse: bool = False
     arch: str = "odmo"
 
     POSITIVE = ("n_actions", "n_joints", "window", "fps", "latent_dim", "enc_hidden", "enc_fc", "traj_hidden")

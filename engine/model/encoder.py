@@ -45,10 +45,15 @@ class SampleSafeBatchNorm1d(nn.BatchNorm1d):
 
 
 class LmpEncoder(nn.Module):
-    """LSTM over the local movement profile, then FC+BN+PReLU twice, then FC to 2·D."""
+    """LSTM over the local movement profile, then FC+BN+PReLU twice, then FC to 2·D.
 
-    def __init__(self, n_features: int, hidden: int, fc: int, latent_dim: int):
+    With ``reverse`` the LSTM reads each clip from its last real frame back to its first, so its final
+    state sits where the decoder begins (a forward LSTM's sits at the clip's end and forgets its start).
+    """
+
+    def __init__(self, n_features: int, hidden: int, fc: int, latent_dim: int, reverse: bool = False):
         super().__init__()
+        self.reverse = reverse
         self.lstm = nn.LSTM(n_features, hidden, batch_first=True)
         self.head = nn.Sequential(
             nn.Linear(hidden, fc),
@@ -66,6 +71,8 @@ class LmpEncoder(nn.Module):
 
         The LSTM is causal, so reading its output at each clip's last real frame ignores padded frames.
         """
+        if self.reverse:
+            lmp = reverse_real_frames(lmp, mask)
         out, _ = self.lstm(lmp)
         if mask is None:
             last = out[:, -1]
@@ -74,3 +81,12 @@ class LmpEncoder(nn.Module):
             last = out[torch.arange(out.shape[0], device=out.device), idx]
         mu, logvar = self.head(last).float().split(self.latent_dim, dim=1)  # float32 under autocast too
         return mu, logvar
+
+
+def reverse_real_frames(x: Tensor, mask: Tensor | None) -> Tensor:
+    """``x`` (B, T, F) with each row's real frames (``mask`` (B, T), real frames first; None: all) in
+    reverse order and its padded frames left after them."""
+    frames = torch.arange(x.shape[1], device=x.device).expand(x.shape[0], -1)
+    n = frames.new_full((x.shape[0], 1), x.shape[1]) if mask is None else mask.sum(dim=1, keepdim=True).long()
+    order = torch.where(frames < n, n - 1 - frames, frames)
+    return x.gather(1, order.unsqueeze(-1).expand_as(x))

@@ -43,7 +43,11 @@ class OdmoModel(nn.Module):
         # it from moving torch's global RNG (a meta-device build would cost 1.4 s of imports at start-up).
         with torch.random.fork_rng(devices=[]):
             self.encoder = LmpEncoder(
-                config.n_joints * 3, config.enc_hidden, config.enc_fc, config.latent_dim
+                config.n_joints * 3,
+                config.enc_hidden,
+                config.enc_fc,
+                config.latent_dim,
+                config.encoder_reverse,
             )
             self.traj_gen = TrajectoryGenerator(
                 cond_dim, config.traj_hidden, config.window, config.use_end_location, config.exact_end

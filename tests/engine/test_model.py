@@ -559,6 +559,33 @@ def test_the_free_term_shifts_root_relative_poses_when_asked() -> None:
         OdmoConfig(n_actions=2, n_joints=2, free_shift=-1)
 
 
+def test_a_reversed_encoder_reads_each_clip_from_its_last_real_frame_to_its_first() -> None:
+    """Its code of a clip is the forward encoder's code (same weights) of the clip played backwards;
+    padded frames change neither; a clip and its reverse get different codes; the switch is saved."""
+    forward, backward = _model().eval(), _model(encoder_reverse=True).eval()
+    backward.load_state_dict(forward.state_dict())
+    generator = torch.Generator().manual_seed(0)
+    lmp = torch.randn(2, T, J * 3, generator=generator)
+    mask = torch.ones(2, T, dtype=torch.bool)
+    mask[1, 8:] = False
+    played_back = lmp.clone()
+    played_back[0] = lmp[0].flip(0)
+    played_back[1, :8] = lmp[1, :8].flip(0)
+    padded = lmp.clone()
+    padded[1, 8:] = 99.0
+    with torch.no_grad():
+        mu, logvar = backward.encode(lmp, mask)
+        expected = forward.encode(played_back, mask)
+        torch.testing.assert_close((mu, logvar), expected)
+        torch.testing.assert_close(backward.encode(padded, mask)[0], mu)
+        torch.testing.assert_close(backward.encode(lmp)[0][0], mu[0])
+        assert float((forward.encode(lmp, mask)[0] - mu).abs().max()) > 1e-3
+    assert OdmoConfig.from_dict(backward.config.to_dict()).encoder_reverse
+    assert not OdmoConfig.from_dict(
+        {k: v for k, v in forward.config.to_dict().items() if k != "encoder_reverse"}
+    ).encoder_reverse
+
+
 def test_a_residual_decoder_that_emits_nothing_holds_the_previous_pose() -> None:
     """Output layer at zero: teacher-forced, each frame is the real previous frame about the generated root
     (frame 0 the start pose); free-running, every frame is the start pose. An absolute decoder with the
