@@ -10,7 +10,9 @@ Prints JSON per action: for the real windows and each decode (before the foot cl
 first ankle's lead over the second along the window's travel: its std over frames, mean over windows),
 its per-window correlation with the real window's (how well the decode keeps the real phase) and the
 mean speed of the faster hand about the root; and how far the teacher-forced decode moves (mean over
-joints, and over the hands) when the previous poses are another window's (how much it reads them). A
+joints, and over the hands) when the previous poses are another window's (how much it reads them); and
+how much of a training window's first and last pose (about the root) its code says (cross-validated R²
+of a linear probe). A
 decoder that keeps the stride teacher-forced and loses it running free either damps its own motion or
 never starts it: a primed decode that keeps it says which (README, stop 41).
 """
@@ -24,6 +26,9 @@ from pathlib import Path
 
 import numpy as np
 import torch
+from sklearn.linear_model import RidgeCV
+from sklearn.metrics import r2_score
+from sklearn.model_selection import cross_val_predict
 
 if __package__ in (None, ""):
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
@@ -32,9 +37,10 @@ from bench.heldout import heldout_split
 from engine.generate import bank_window, encode_clips
 from engine.generate._decode import display_lift, ready_model
 from engine.model.odmo import OdmoModel
-from engine.modelio import load_model
+from engine.modelio import LoadedModel, load_model
 from engine.motion.contact import hand_joints, leg_chains
 from engine.motion.datasets import load_folder
+from engine.motion.motion import Motion
 
 
 def strides(joints: np.ndarray, ankles: tuple[int, int], root: int) -> np.ndarray:
@@ -81,6 +87,26 @@ def primed_decode(
     return model.decode_full(z, actions, ends, prev_truth=previous, tf_rate=1.0).joints
 
 
+def code_probe(loaded: LoadedModel, clips: list[Motion], root: int) -> dict[str, float]:
+    """How much of a window's first and last root-relative pose its code says: ``probe_r2`` over the
+    windows of ``clips``."""
+    windows = [bank_window(loaded, c) for c in clips if c.duration * loaded.fps >= loaded.window]
+    codes, _ = encode_clips(loaded, windows)
+    joints = np.stack([w.joints for w in windows])
+    local = (joints - joints[:, :, root : root + 1]).reshape(len(joints), joints.shape[1], -1)
+    return {
+        "code_r2_first_pose": round(probe_r2(codes, local[:, 0]), 2),
+        "code_r2_last_pose": round(probe_r2(codes, local[:, -1]), 2),
+    }
+
+
+def probe_r2(codes: np.ndarray, targets: np.ndarray) -> float:
+    """Variance-weighted R² of a ridge regression from ``codes`` (N, D) to ``targets`` (N, V), 5-fold
+    cross-validated (0: no better than the mean; negative: worse)."""
+    predicted = cross_val_predict(RidgeCV(alphas=np.logspace(-3, 3, 7)), codes, targets, cv=5)
+    return float(r2_score(targets, predicted, multioutput="variance_weighted"))
+
+
 def main() -> int:
     """Print the figures per action."""
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -99,7 +125,7 @@ def main() -> int:
     if len(ankles) != 2:
         raise SystemExit(f"{args.model}: the skeleton has no two legs to measure a stride on")
     hands, root = hand_joints(loaded.skeleton), loaded.skeleton.root
-    _, test_clips = heldout_split(load_folder(args.data).clips)
+    train_clips, test_clips = heldout_split(load_folder(args.data).clips)
     report = {}
     for action in args.actions:
         clips = [c for c in test_clips if c.action == action and c.duration * loaded.fps >= loaded.window]
@@ -126,7 +152,8 @@ def main() -> int:
             "previous_pose_effect_m": round(float(effect.mean()), 4),
             "on_hands": round(float(effect[hands].mean()), 4),
         }
-        report[action] = {"n": len(windows)} | figures | reads
+        probe = code_probe(loaded, [c for c in train_clips if c.action == action], root)
+        report[action] = {"n": len(windows)} | figures | reads | probe
     print(json.dumps({"model": args.model.name, **report}, indent=1))
     return 0
 
