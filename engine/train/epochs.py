@@ -123,11 +123,13 @@ class EpochsRun:
 
 
 def write_log(path: Path, rows: list[dict[str, float]]) -> None:
-    """Write the per-epoch CSV log (one row per epoch, header from the first) atomically; no rows, no file."""
+    """Write the per-epoch CSV log (one row per epoch; every column any row has, blank where a row resumed
+    from an older checkpoint lacks it) atomically; no rows, no file."""
     if not rows:
         return
     buffer = io.StringIO()
-    writer = csv.DictWriter(buffer, fieldnames=list(rows[0]), lineterminator="\n")
+    columns = list(dict.fromkeys(name for row in rows for name in row))
+    writer = csv.DictWriter(buffer, fieldnames=columns, restval="", lineterminator="\n")
     writer.writeheader()
     writer.writerows(rows)
     atomic_write_text(path, buffer.getvalue())

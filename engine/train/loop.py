@@ -286,7 +286,8 @@ def start_at_mean_pose(model: OdmoModel, prepared: PreparedClips, train_idx: np.
     training clips' canonical centre windows (the pose, root-centred with ``root_relative_poses``; with
     ``pose_output`` "rotations" each joint's mean local rotation, in 6D), and scale its output weights by
     ``MEAN_POSE_WEIGHT_SCALE`` (``OdmoConfig.mean_pose_init``): from torch's default initialisation they
-    move each joint by about 0.2 m, more than the hips lie apart."""
+    move each joint by about 0.2 m, more than the hips lie apart. A residual decoder (``pose_update``) gets
+    the mean pose as its start pose instead, its output (a step) unbiased."""
     if model.config.pose_output == "rotations":
         matrices = mean_local_rotations(prepared, train_idx).as_matrix()
         mean = np.concatenate([matrices[:, :, 0], matrices[:, :, 1]], axis=1)  # (J, 6): two columns

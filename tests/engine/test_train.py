@@ -52,6 +52,9 @@ def test_write_log_writes_a_csv_and_nothing_without_rows(tmp_path: Path) -> None
     write_log(tmp_path / "log.csv", rows)
     assert (tmp_path / "log.csv").read_text() == "epoch,loss\n1,0.5\n2,0.25\n"
     assert list(tmp_path.iterdir()) == [tmp_path / "log.csv"]  # no temporary file left behind
+    resumed = [{"epoch": 1, "loss": 0.5}, {"epoch": 2, "loss": 0.25, "start": 0.1}]  # a term added since
+    write_log(tmp_path / "log.csv", resumed)
+    assert (tmp_path / "log.csv").read_text() == "epoch,loss,start\n1,0.5,\n2,0.25,0.1\n"
 
 
 def test_split_is_by_clip_stratified_and_seeded() -> None:
