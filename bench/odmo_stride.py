@@ -12,9 +12,8 @@ its per-window correlation with the real window's (how well the decode keeps the
 mean speed of the faster hand about the root; and how far the teacher-forced decode moves (mean over
 joints, and over the hands) when the previous poses are another window's (how much it reads them); and
 how much of a training window's first and last pose (about the root) its code says (cross-validated R²
-of a linear probe). A
-decoder that keeps the stride teacher-forced and loses it running free either damps its own motion or
-never starts it: a primed decode that keeps it says which (README, stop 41).
+of a linear probe). A decoder that keeps the stride teacher-forced and loses it running free either
+damps its own motion or never starts it: a primed decode that keeps it says which (README, stop 41).
 """
 
 from __future__ import annotations
@@ -87,10 +86,15 @@ def primed_decode(
     return model.decode_full(z, actions, ends, prev_truth=previous, tf_rate=1.0).joints
 
 
+def full_windows(loaded: LoadedModel, clips: list[Motion]) -> list[Motion]:
+    """The bank windows of those ``clips`` at least one model window long."""
+    return [bank_window(loaded, c) for c in clips if c.duration * loaded.fps >= loaded.window]
+
+
 def code_probe(loaded: LoadedModel, clips: list[Motion], root: int) -> dict[str, float]:
     """How much of a window's first and last root-relative pose its code says: ``probe_r2`` over the
     windows of ``clips``."""
-    windows = [bank_window(loaded, c) for c in clips if c.duration * loaded.fps >= loaded.window]
+    windows = full_windows(loaded, clips)
     codes, _ = encode_clips(loaded, windows)
     joints = np.stack([w.joints for w in windows])
     local = (joints - joints[:, :, root : root + 1]).reshape(len(joints), joints.shape[1], -1)
@@ -128,8 +132,7 @@ def main() -> int:
     train_clips, test_clips = heldout_split(load_folder(args.data).clips)
     report = {}
     for action in args.actions:
-        clips = [c for c in test_clips if c.action == action and c.duration * loaded.fps >= loaded.window]
-        windows = [bank_window(loaded, c) for c in clips[: args.n]]
+        windows = full_windows(loaded, [c for c in test_clips if c.action == action])[: args.n]
         codes, ends = encode_clips(loaded, windows)
         real = np.stack([w.joints for w in windows]).astype(np.float32)
         z, e = torch.from_numpy(codes), torch.from_numpy(ends)
@@ -145,9 +148,7 @@ def main() -> int:
         sets = {"real": real, "free": free, "forced": forced, f"primed_{args.prime}": primed}
         sets = {k: js.reshape(real.shape) for k, js in sets.items()}
         figures = {k: stride_figures(js, real, ankles, hands, root, loaded.fps) for k, js in sets.items()}
-        effect = np.linalg.norm(forced.reshape(real.shape) - swapped.reshape(real.shape), axis=-1).mean(
-            (0, 1)
-        )
+        effect = np.linalg.norm(sets["forced"] - swapped.reshape(real.shape), axis=-1).mean((0, 1))
         reads = {
             "previous_pose_effect_m": round(float(effect.mean()), 4),
             "on_hands": round(float(effect[hands].mean()), 4),

@@ -114,8 +114,14 @@ def shift_tolerant_mse(pred: Tensor, target: Tensor, mask: Tensor, span: int, ma
 def start_mse(pred: Tensor, target: Tensor, mask: Tensor, root: int, frames: int) -> Tensor:
     """Squared error of the first ``frames`` root-relative poses of ``pred`` against ``target`` (B, T, J, 3)
     over the real ones: where in its cycle a motion starts, and which way it moves."""
-    local, truth = (x[:, :frames] - x[:, :frames, root : root + 1] for x in (pred, target))
-    return masked_mse(local, truth, mask[:, :frames])
+    return masked_mse(
+        about_root(pred[:, :frames], root), about_root(target[:, :frames], root), mask[:, :frames]
+    )
+
+
+def about_root(joints: Tensor, root: int) -> Tensor:
+    """Joints (B, T, J, 3) relative to each frame's ``root`` joint."""
+    return joints - joints[:, :, root : root + 1]
 
 
 def _real_pairs(mask: Tensor) -> Tensor:
@@ -127,7 +133,7 @@ def mean_speeds(joints: Tensor, mask: Tensor, fps: float, root: int, span: int =
     """Per window, span and joint (B, K, J): mean speed (m/s) of the root-relative joints (B, T, J, 3)
     over the pairs of real frames in each run of ``span`` frame steps (0: one span, the whole window;
     a span without a real pair reads 0); independent of the motion's phase."""
-    local = joints - joints[:, :, root : root + 1]
+    local = about_root(joints, root)
     both = _real_pairs(mask).to(joints.dtype)[:, :, None]
     speed = local.diff(dim=1).square().sum(-1).clamp(min=1e-12).sqrt() * fps
     return _span_sums(speed * both, span) / _span_sums(both, span).clamp(min=1.0)
@@ -163,7 +169,7 @@ COORDINATION_FLOOR = 1e-3  # (m²/s²)²: a still window's Gram is near zero
 def amplitude_spectra(joints: Tensor, mask: Tensor, root: int) -> Tensor:
     """Per window, joint and frequency (B, J, T // 2 + 1): the amplitude (m) of the root-relative joints
     (B, T, J, 3) about their mean over the real frames, padded frames held at that mean; phase-free."""
-    local = joints - joints[:, :, root : root + 1]
+    local = about_root(joints, root)
     m = mask.to(joints.dtype)[:, :, None, None]
     mean = (local * m).sum(1, keepdim=True) / m.sum(1, keepdim=True).clamp(min=1.0)
     spectra = torch.fft.rfft((local - mean) * m, dim=1).abs().square().sum(-1)
@@ -242,10 +248,10 @@ def velocity_gram(
     """(B, 3J, 3J) mean outer product over the real frame steps of each window's joint velocities
     relative to the root (m²/s²), of the joints ``on`` (None: all, J of them): how every joint's movement
     goes with every other's, whatever the phase."""
-    local = joints - joints[:, :, root : root + 1]
+    local = about_root(joints, root)
     if on is not None:
         local = local[:, :, list(on)]
-    steps = (mask[:, 1:].bool() & mask[:, :-1].bool()).to(joints.dtype)
+    steps = _real_pairs(mask).to(joints.dtype)
     vel = (local.diff(dim=1) * fps).flatten(2) * steps.unsqueeze(-1)
     return torch.einsum("btk,btl->bkl", vel, vel) / steps.sum(1).clamp(min=1.0)[:, None, None]
 
@@ -430,7 +436,7 @@ def odmo_losses(
     twist_on = free_joints is not None and hips is not None and shoulders is not None
     if free_joints is not None:
         if config.free_shift > 0:  # root-relative: the shifted target's root is the trajectory loss's
-            local, truth = (x - x[:, :, root : root + 1] for x in (free_joints, joints))
+            local, truth = about_root(free_joints, root), about_root(joints, root)
             terms["free"] = shift_tolerant_mse(local, truth, mask, config.free_span, config.free_shift)
         else:
             terms["free"] = span_mean_mse(free_joints, joints, mask, config.free_span)
