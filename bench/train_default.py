@@ -430,6 +430,8 @@ def model_switches(config: OdmoConfig) -> str:
         parts.append(
             f"`w_foot_height = {config.w_foot_height:g}` (a loss on that decode's sorted foot heights)"
         )
+    if config.w_stance > 0:
+        parts.append(f"`w_stance = {config.w_stance:g}` (a loss on the speed of that decode's lowest foot)")
     if config.w_heading > 0:
         parts.append(f"`w_heading = {config.w_heading:g}` (a loss on that decode's heading against its path)")
     if config.w_twist > 0:

@@ -38,6 +38,7 @@ _BEFORE_SWITCHES = {
     "w_start": 0.0,
     "pose_update": "absolute",
     "encoder_reverse": False,
+    "w_stance": 0.0,
 }
 SCHEDULED_SAMPLING = ("one_step", "free_run")
 #: The paper's model in one setting, ``OdmoConfig(n_actions, n_joints, **PAPER)``: every project change off.
@@ -90,7 +91,9 @@ class OdmoConfig(ModelConfig):
     ``w_skate`` sees the teacher-forced one), where the data's feet are
     planted (``free_skate_contacts`` "data") or where that decode's own are ("own": a free decode's
     stride drifts out of step with the data's). ``w_foot_height`` weights the squared error of that
-    decode's sorted foot heights (how long each foot spends at each height, phase-free), ``w_heading``
+    decode's sorted foot heights (how long each foot spends at each height, phase-free), ``w_stance`` the
+    squared error of the RMS speed of its lowest foot against the data's (the foot it puts down stands;
+    sorted heights say nothing of which foot is down while the other swings), ``w_heading``
     the squared error of the cosine between its hips' axis and its direction of travel (a body that
     does not face its path), ``w_twist`` the squared error of its torso twist per frame (the shoulders'
     axis turned against the hips'), ``w_coordination`` the relative squared error of the mean outer
@@ -171,6 +174,7 @@ class OdmoConfig(ModelConfig):
     spectrum_legs: bool = True
     free_skate_contacts: str = "data"
     w_foot_height: float = 0.0
+    w_stance: float = 0.0
     w_heading: float = 0.0
     w_twist: float = 0.0
     w_coordination: float = 0.0
@@ -189,7 +193,7 @@ class OdmoConfig(ModelConfig):
     NON_NEGATIVE += ("w_raw", "w_contact", "w_velocity", "contrastive_pull", "epochs", "tf_decay_epochs")
     NON_NEGATIVE += ("w_skate", "w_free", "w_speed", "w_spectrum", "w_free_skate", "w_foot_height")
     NON_NEGATIVE += ("w_heading", "w_twist", "w_coordination", "speed_span", "spectrum_span", "free_shift")
-    NON_NEGATIVE += ("w_start",)
+    NON_NEGATIVE += ("w_start", "w_stance")
     RATES = ("tf_start", "tf_end")
     CHOICES: ClassVar[dict[str, tuple[str, ...]]] = {
         "train_precision": TRAIN_PRECISIONS,

@@ -32,7 +32,9 @@ LOSS_TERMS = (
     "twist",
     "coordination",
     "start",
+    "stance",
 )
+STANCE_TAU = 0.01  # metres: how much lower a foot joint must be than another to take the weight
 
 
 def masked_mse(pred: Tensor, target: Tensor, mask: Tensor, axis_weights: Tensor | None = None) -> Tensor:
@@ -299,6 +301,31 @@ def _above_floor(feet: Tensor, rest_heights: Sequence[float], mask: Tensor) -> T
     return above - above.masked_fill(~mask.unsqueeze(-1), float("inf")).amin(dim=(1, 2), keepdim=True)
 
 
+def stance_speeds(feet: Tensor, rest_heights: Sequence[float], mask: Tensor, fps: float) -> Tensor:
+    """(B,) mean horizontal speed (m/s) of the lowest foot joint over its resting height in each window of
+    ``feet`` (B, T, F, 3): each frame step weighs every joint by a softmin of its height (``STANCE_TAU``),
+    so the speed is the standing foot's and moves with whichever foot the decode puts lowest."""
+    above = feet[..., 1] - feet.new_tensor(list(rest_heights))
+    weight = torch.softmax(-above / STANCE_TAU, dim=-1)
+    weight = 0.5 * (weight[:, 1:] + weight[:, :-1])
+    speed = ((feet[:, 1:, :, ::2] - feet[:, :-1, :, ::2]).square().sum(-1) + 1e-8).sqrt() * fps
+    pairs = _real_pairs(mask).to(feet.dtype)
+    return ((weight * speed).sum(-1) * pairs).sum(1) / pairs.sum(1).clamp(min=1.0)
+
+
+def stance_loss(
+    pred: Tensor, target: Tensor, rest_heights: Sequence[float], mask: Tensor, fps: float
+) -> Tensor:
+    """Squared error (m²/s²) of ``stance_speeds`` of ``pred`` against ``target`` (B, T, F, 3) per window:
+    the foot a decode puts lowest stands as still as the data's (a walk's, about 0.07 m/s; a run's
+    moves in flight), whatever the phase, and a foot kept off the floor does not escape it."""
+    return (
+        (stance_speeds(pred, rest_heights, mask, fps) - stance_speeds(target, rest_heights, mask, fps))
+        .square()
+        .mean()
+    )
+
+
 def foot_height_loss(pred: Tensor, target: Tensor, rest_heights: Sequence[float], mask: Tensor) -> Tensor:
     """Squared error (m²) of each foot joint's sorted heights over its window's floor in ``pred`` against
     ``target`` (B, T, F, 3): how long each foot spends at each height, whatever the phase, so feet
@@ -432,6 +459,7 @@ def odmo_losses(
         "twist": zero,
         "coordination": zero,
         "start": zero,
+        "stance": zero,
     }
     twist_on = free_joints is not None and hips is not None and shoulders is not None
     if free_joints is not None:
@@ -458,6 +486,7 @@ def odmo_losses(
         if free_joints is not None:
             free_feet, rest = free_joints[:, :, feet], config.foot_heights or (0.0,) * len(feet)
             terms["foot_height"] = foot_height_loss(free_feet, joints[:, :, feet], rest, mask)
+            terms["stance"] = stance_loss(free_feet, joints[:, :, feet], rest, mask, config.fps)
             if config.free_skate_contacts == "own":
                 contacts = own_contacts(free_feet, rest, mask)
             terms["free_skate"] = skate_loss(free_feet, contacts, mask, config.fps)
@@ -481,6 +510,7 @@ def odmo_losses(
         "twist": config.w_twist if twist_on else 0.0,
         "coordination": config.w_coordination if free_joints is not None else 0.0,
         "start": config.w_start if free_joints is not None else 0.0,
+        "stance": config.w_stance if free_feet_on else 0.0,
     }
     terms["total"] = sum(weights[k] * terms[k] for k in LOSS_TERMS if weights[k] > 0)
     return terms

@@ -115,6 +115,7 @@ def _forward(
         "w_twist",
         "w_coordination",
         "w_start",
+        "w_stance",
     )
     if any(getattr(config, name) > 0 for name in free_terms):
         free = out.joints if truth is None else model.decode_full(z, data.actions, end).joints

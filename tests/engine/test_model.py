@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from typing import Any
 
@@ -35,6 +36,8 @@ from engine.model.losses import (
     spectrum_joints,
     spectrum_loss,
     speed_loss,
+    stance_loss,
+    stance_speeds,
     start_mse,
     twist_loss,
     velocity_gram,
@@ -771,6 +774,55 @@ def test_foot_height_loss_compares_time_at_each_height_whatever_the_phase() -> N
     floating[0, 15:] = 5.0  # padded frames cost nothing
     mask[0, 15:] = False
     assert foot_height_loss(floating, target, rest, mask) < expected
+
+
+def _two_feet(low_speed: float, high_speed: float, gap: float, t: int = 20) -> torch.Tensor:
+    """(1, t, 2, 3): foot 0 on the floor sliding along x at ``low_speed`` m/s (20 fps), foot 1 ``gap`` m
+    up moving along z at ``high_speed``."""
+    feet = torch.zeros(1, t, 2, 3, dtype=torch.float64)
+    steps = torch.arange(t, dtype=torch.float64) / 20.0
+    feet[0, :, 0, 0] = low_speed * steps
+    feet[0, :, 1, 2] = high_speed * steps
+    feet[0, :, 1, 1] = gap
+    return feet
+
+
+def test_the_stance_term_is_the_speed_of_the_lowest_foot() -> None:
+    """The foot put lowest gives the speed (the other's weight is e^-10 at 10 cm); feet level share it;
+    resting heights are subtracted first; padded steps cost nothing; the loss is the squared difference
+    of the two windows' speeds, weighted by ``w_stance`` through ``odmo_losses`` on the free decode. A
+    still foot reads 2 mm/s, the guard that keeps the square root's gradient finite."""
+    mask = torch.ones(1, 20, dtype=torch.bool)
+    rest = (0.0, 0.0)
+    walk = _two_feet(0.0, 2.0, 0.1)  # the standing foot still, the swinging one up
+    skim = _two_feet(1.0, 0.0, 0.1)  # the lowest foot slides, the raised one stands
+    still = 0.002 + 2.0 * math.exp(-10)
+    assert float(stance_speeds(walk, rest, mask, 20.0)) == pytest.approx(still, abs=1e-4)
+    assert float(stance_speeds(skim, rest, mask, 20.0)) == pytest.approx(1.0, abs=1e-4)
+    assert float(stance_speeds(_two_feet(1.0, 3.0, 0.0), rest, mask, 20.0)) == pytest.approx(2.0, abs=1e-4)
+    assert float(stance_speeds(skim, (0.0, 0.2), mask, 20.0)) == pytest.approx(0.002, abs=1e-3)
+    padded = mask.clone()
+    padded[0, 10:] = False
+    sped = skim.clone()
+    sped[0, 10:, 0, 0] = 10.0 * torch.arange(10, dtype=torch.float64)
+    assert float(stance_speeds(sped, rest, padded, 20.0)) == pytest.approx(1.0, abs=1e-4)
+    assert float(stance_loss(skim, walk, rest, mask, 20.0)) == pytest.approx(0.996, abs=1e-3)
+    assert float(stance_loss(walk.roll(5, dims=1), walk, rest, mask, 20.0)) == pytest.approx(0.0, abs=1e-6)
+    # through odmo_losses: feet 0 and 1 of a 2-joint body, the free decode skimming where the data walks
+    kw = {"mu": torch.zeros(2, 20), "logvar": torch.zeros(2, 20), "same": torch.tensor([True]), "root": 0}
+    kw |= {"joints": walk.float().repeat(2, 1, 1, 1), "trajectory": walk[:, :, 0].float().repeat(2, 1, 1)}
+    kw |= {"mask": mask.repeat(2, 1), "pred_joints": walk.float().repeat(2, 1, 1, 1)}
+    kw |= {
+        "pred_trajectory": walk[:, :, 0].float().repeat(2, 1, 1),
+        "free_joints": skim.float().repeat(2, 1, 1, 1),
+    }
+    kw |= {"contact_logits": torch.zeros(2, 20, 2), "contacts": torch.zeros(2, 20, 2)}
+    cfg = OdmoConfig(n_actions=2, n_joints=2, foot_joints=(0, 1), foot_heights=rest, w_stance=3.0)
+    losses = odmo_losses(cfg, **kw)
+    assert float(losses["stance"]) == pytest.approx(0.996, abs=1e-3)
+    without = odmo_losses(dataclasses.replace(cfg, w_stance=0.0), **kw)
+    assert float(losses["total"] - without["total"]) == pytest.approx(3 * 0.996, abs=3e-3)
+    assert OdmoConfig.from_dict({k: v for k, v in cfg.to_dict().items() if k != "w_stance"}).w_stance == 0.0
 
 
 def _crab(deg: float, t: int = 20) -> torch.Tensor:

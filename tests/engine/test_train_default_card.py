@@ -5,7 +5,7 @@ from __future__ import annotations
 import re
 
 from bench.train_default import model_switches
-from engine.model.config import OdmoConfig
+from engine.model.config import PAPER, OdmoConfig
 
 
 def test_the_card_names_a_heavier_root_height_only_when_the_config_has_one() -> None:
@@ -14,3 +14,11 @@ def test_the_card_names_a_heavier_root_height_only_when_the_config_has_one() -> 
     assert "traj_y_weight" not in plain
     assert "`traj_y_weight = 5`" in heavier
     assert re.findall(r"`(\w+)", plain) == [n for n in re.findall(r"`(\w+)", heavier) if n != "traj_y_weight"]
+
+
+def test_the_card_names_every_project_loss_weight_the_config_turns_on() -> None:
+    added = [name for name in PAPER if name.startswith("w_")]
+    assert "w_stance" in added
+    for name in added:
+        on = OdmoConfig(n_actions=3, n_joints=5, foot_joints=(3, 4), foot_heights=(0.0, 0.0), **{name: 2.5})
+        assert f"`{name} = 2.5`" in model_switches(on), name
