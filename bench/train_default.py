@@ -151,6 +151,14 @@ def parse_args() -> argparse.Namespace:
         help="the LMP encoder reads each window backwards (OdmoConfig.encoder_reverse)",
     )
     p.add_argument(
+        "--clock-hz",
+        type=float,
+        nargs="+",
+        default=[],
+        metavar="HZ",
+        help="frequencies whose sin and cos of time the pose decoder reads (OdmoConfig.clock_hz)",
+    )
+    p.add_argument(
         "--traj-y-weight",
         type=float,
         default=1.0,
@@ -214,6 +222,7 @@ def main() -> int:
         pose_output=args.pose_output,
         pose_update=args.pose_update,
         encoder_reverse=args.encoder_reverse,
+        clock_hz=tuple(args.clock_hz),
         traj_y_weight=args.traj_y_weight,
         **weights,
     )
@@ -388,6 +397,9 @@ def model_switches(config: OdmoConfig) -> str:
         )
     elif config.bone_projection:
         parts.append("`bone_projection` (decoded joints lie on the skeleton's bone lengths by construction)")
+    if config.clock_hz:
+        hz = ", ".join(f"{f:g}" for f in config.clock_hz)
+        parts.append(f"`clock_hz = ({hz})` (the pose decoder reads sin and cos of time at these frequencies)")
     if config.encoder_reverse:
         parts.append("`encoder_reverse` (the LMP encoder reads each window from its end back to its start)")
     if config.pose_update == "residual":

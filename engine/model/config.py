@@ -39,6 +39,7 @@ _BEFORE_SWITCHES = {
     "pose_update": "absolute",
     "encoder_reverse": False,
     "w_stance": 0.0,
+    "clock_hz": (),
 }
 SCHEDULED_SAMPLING = ("one_step", "free_run")
 #: The paper's model in one setting, ``OdmoConfig(n_actions, n_joints, **PAPER)``: every project change off.
@@ -49,6 +50,7 @@ FREE_SKATE_CONTACTS = ("data", "own")
 COORDINATION_ON = ("all", "legs")
 POSE_OUTPUTS = ("joints", "rotations")
 POSE_UPDATES = ("absolute", "residual")
+MAX_CLOCK_FREQUENCIES = 32
 
 
 @dataclass
@@ -116,6 +118,9 @@ class OdmoConfig(ModelConfig):
     waves' hands measured in the README, holds it still at its mean). ``encoder_reverse`` has the LMP
     encoder read each window backwards, ending at its first frame: the paper's forward LSTM ends at the
     last frame, and its codes say little of where the window starts, which the decoder must produce first.
+    ``clock_hz`` feeds the pose decoder sin and cos of each frame's time at these frequencies (Hz): its
+    only other inputs are the code, constant over the window, and a ramp, so every rhythm it keeps up
+    free-running is one its own state sustains, and measured ones die out (the waves, README).
     ``scheduled_sampling`` says where the non-teacher-forced previous poses come from: "one_step" (a
     teacher-forced pass, the default) or "free_run" (a free-running decode, as the reference's per-step
     loop does; measured worse on the bundled recipe, see the README).
@@ -184,6 +189,7 @@ class OdmoConfig(ModelConfig):
     pose_output: str = "joints"
     pose_update: str = "absolute"
     encoder_reverse: bool = False
+    clock_hz: tuple[float, ...] = ()
     arch: str = "odmo"
 
     POSITIVE = ("n_actions", "n_joints", "window", "fps", "latent_dim", "enc_hidden", "enc_fc", "traj_hidden")
@@ -220,6 +226,14 @@ class OdmoConfig(ModelConfig):
             self.foot_heights = tuple(float(h) for h in self.foot_heights)
         except (TypeError, ValueError) as exc:
             raise ConfigError(f"foot_joints and foot_heights must be lists of numbers ({exc})") from None
+        try:
+            self.clock_hz = tuple(float(f) for f in self.clock_hz)
+        except (TypeError, ValueError) as exc:
+            raise ConfigError(f"clock_hz must be a list of frequencies in Hz ({exc})") from None
+        if len(self.clock_hz) > MAX_CLOCK_FREQUENCIES:
+            raise ConfigError(f"clock_hz holds at most {MAX_CLOCK_FREQUENCIES} frequencies")
+        if any(not 0 < f <= self.fps / 2 for f in self.clock_hz):
+            raise ConfigError(f"clock_hz must lie in (0, fps / 2 = {self.fps / 2:g}] Hz, got {self.clock_hz}")
         if self.foot_heights and len(self.foot_heights) != len(self.foot_joints):
             raise ConfigError("foot_heights needs one height per foot joint")
         if any(not 0 <= j < self.n_joints for j in self.foot_joints):

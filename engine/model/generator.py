@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import functools
 import logging
+import math
 import warnings
 from collections.abc import Callable
 from typing import Any
@@ -155,7 +156,9 @@ class MotionGenerator(nn.Module):
     origin (``attach_skeleton`` first; it needs ``relative``): bone lengths hold by construction. The
     decoder still reads back joint positions. With ``residual`` (joints only) each frame's output is a
     step added to the previous pose, and frame 0's previous pose is a learned start pose: a joint the
-    decoder does not move stays where it was instead of falling back to a pose of its own.
+    decoder does not move stays where it was instead of falling back to a pose of its own. With
+    ``clock_hz`` each frame's input also holds sin and cos of 2π·f·t at each frequency f (Hz, t in seconds
+    from the window's first frame): rhythms that do not die out however long the decoder runs.
     """
 
     def __init__(
@@ -170,6 +173,7 @@ class MotionGenerator(nn.Module):
         fps: float = 20.0,
         rotations: bool = False,
         residual: bool = False,
+        clock_hz: tuple[float, ...] = (),
     ):
         super().__init__()
         if rotations and not relative:
@@ -188,7 +192,8 @@ class MotionGenerator(nn.Module):
         self.fps = fps
         self.traj_embed = nn.Sequential(nn.Linear(3, hidden), nn.PReLU())
         self.traj_lstm = nn.LSTM(hidden, hidden, num_layers=2, batch_first=True)
-        self.embed = nn.Linear(self.pose_dim + cond_dim + 1 + (3 if velocity_input else 0), hidden)
+        extra = 1 + (3 if velocity_input else 0) + 2 * len(clock_hz)
+        self.embed = nn.Linear(self.pose_dim + cond_dim + extra, hidden)
         self.embed_act = nn.PReLU()
         self.lstm = nn.LSTM(hidden, hidden, num_layers=2, batch_first=True)
         self.out = nn.Linear(hidden, n_joints * 6 if rotations else self.pose_dim)
@@ -197,6 +202,11 @@ class MotionGenerator(nn.Module):
         self.fk_parents: tuple[int, ...] | None = None
         steps = torch.arange(window, dtype=torch.float32) / window
         self.register_buffer("steps", steps.view(1, -1, 1), persistent=False)
+        angles = (
+            2 * math.pi * torch.arange(window, dtype=torch.float32)[:, None] / fps * torch.tensor(clock_hz)
+        )
+        clock = torch.cat([angles.sin(), angles.cos()], dim=1)
+        self.register_buffer("clock", clock.view(1, window, -1), persistent=False)
         self._step_cache: tuple[list[tuple[Tensor, int]], tuple[Tensor | list[Tensor], ...]] | None = None
 
     @torch.no_grad()
@@ -220,18 +230,22 @@ class MotionGenerator(nn.Module):
     def _context(self, trajectory: Tensor, cond: Tensor) -> tuple[tuple[Tensor, Tensor], Tensor]:
         """Decoder initial state from ``trajectory`` (B, T, 3) and the pose-free input term (B, T, H).
 
-        W·[pose, cond, t/T, v] + b = W_pose·pose + (W_cond·cond + b) + w_t·t/T + W_v·v: the code term is
-        computed once per sequence, the time term broadcast over it, and the root velocity term (with
-        ``velocity_input``) added per frame.
+        W·[pose, cond, t/T, v, clock] + b = W_pose·pose + (W_cond·cond + b) + w_t·t/T + W_v·v + W_c·clock:
+        the code term is computed once per sequence, the time and clock terms broadcast over it, and the
+        root velocity term (with ``velocity_input``) added per frame.
         """
         _, state = self.traj_lstm(self.traj_embed(trajectory))
         weight = self.embed.weight
         at_time = self.pose_dim + self.cond_dim
         per_code = F.linear(cond, weight[:, self.pose_dim : at_time], self.embed.bias)
         const = per_code.unsqueeze(1) + self.steps * weight[:, at_time]
+        at_clock = at_time + 1
         if self.velocity_input:
             steps = trajectory.diff(dim=1, prepend=trajectory[:, :1]) * self.fps
-            const = const + F.linear(steps, weight[:, at_time + 1 :])
+            const = const + F.linear(steps, weight[:, at_clock : at_clock + 3])
+            at_clock += 3
+        if self.clock.shape[-1]:
+            const = const + F.linear(self.clock, weight[:, at_clock:])
         return state, const
 
     def _run(self, prev: Tensor, const: Tensor, state: tuple[Tensor, Tensor]) -> tuple[Tensor, Tensor]:

@@ -589,6 +589,43 @@ def test_a_reversed_encoder_reads_each_clip_from_its_last_real_frame_to_its_firs
     ).encoder_reverse
 
 
+def test_a_clocked_decoder_reads_sin_and_cos_of_time_at_each_frequency() -> None:
+    """Its pose-free input is the unclocked decoder's (same other weights) plus W_c·[sin 2πft, cos 2πft]
+    at each frequency, t in seconds (20 fps: at 1.25 Hz frame 4 is a quarter turn, sin 1, cos 0); the
+    frequencies are saved, checked, and a model without them keeps its input width."""
+    plain = _model().eval()
+    clocked = _model(clock_hz=(1.25, 2.5)).eval()
+    state = plain.state_dict()
+    w = clocked.motion_gen.embed.weight.detach()
+    clock_w = w[:, -4:]
+    clocked.load_state_dict(
+        state | {"motion_gen.embed.weight": torch.cat([state["motion_gen.embed.weight"], clock_w], 1)}
+    )
+    torch.testing.assert_close(
+        clocked.motion_gen.clock[0, 4], torch.tensor([1.0, 0.0, 0.0, -1.0]), atol=1e-6, rtol=0
+    )
+    z, action, end = torch.randn(2, 20), torch.tensor([0, 2]), torch.randn(2, 3)
+    with torch.no_grad():
+        consts = []
+        for model in (plain, clocked):
+            cond = model.condition(z, action)
+            consts.append(model.motion_gen._context(model.traj_gen(cond, end), cond)[1])
+        seconds = torch.arange(T, dtype=torch.float32)[:, None] / 20.0
+        angles = 2 * math.pi * seconds * torch.tensor([1.25, 2.5])
+        expected = consts[0] + torch.cat([angles.sin(), angles.cos()], 1) @ clock_w.t()
+        torch.testing.assert_close(consts[1], expected, atol=1e-5, rtol=1e-5)
+        assert not torch.allclose(clocked.decode(z, action, end)[0], plain.decode(z, action, end)[0])
+    assert plain.motion_gen.embed.in_features == clocked.motion_gen.embed.in_features - 4
+    assert OdmoConfig.from_dict(clocked.config.to_dict()).clock_hz == (1.25, 2.5)
+    assert (
+        OdmoConfig.from_dict({k: v for k, v in plain.config.to_dict().items() if k != "clock_hz"}).clock_hz
+        == ()
+    )
+    for bad in ((0.0,), (-1.0,), (10.5,), (float("nan"),), ("fast",), (1.0,) * 33):
+        with pytest.raises(ConfigError, match="clock_hz"):
+            OdmoConfig(n_actions=2, n_joints=J, clock_hz=bad)
+
+
 def test_a_residual_decoder_that_emits_nothing_holds_the_previous_pose() -> None:
     """Output layer at zero: teacher-forced, each frame is the real previous frame about the generated root
     (frame 0 the start pose); free-running, every frame is the start pose. An absolute decoder with the
