@@ -8,8 +8,10 @@ running free (as sampling does), teacher-forced (every previous pose taken from 
 frame is then a one-step prediction) and primed (the first ``--prime`` previous poses real, then free).
 Prints JSON per action: for the real windows and each decode (before the foot clean-up), the stride (the
 first ankle's lead over the second along the window's travel: its std over frames, mean over windows),
-its per-window correlation with the real window's (how well the decode keeps the real phase) and the
-mean speed of the faster hand about the root; and how far the teacher-forced decode moves (mean over
+its per-window correlation with the real window's (how well the decode keeps the real phase), the
+mean speed of the faster hand about the root, the mean speed of the lowest foot and the mean height gap
+between the two legs' lowest foot joints (a gait stands on one foot and swings the other: README, stop
+42); and how far the teacher-forced decode moves (mean over
 joints, and over the hands) when the previous poses are another window's (how much it reads them); and
 how much of a training window's first and last pose (about the root) its code says (cross-validated R²
 of a linear probe). A decoder that keeps the stride teacher-forced and loses it running free either
@@ -35,6 +37,7 @@ if __package__ in (None, ""):
 from bench.heldout import heldout_split
 from engine.generate import bank_window, encode_clips
 from engine.generate._decode import display_lift, ready_model
+from engine.model.losses import stance_speeds
 from engine.model.odmo import OdmoModel
 from engine.modelio import LoadedModel, load_model
 from engine.motion.contact import hand_joints, leg_chains
@@ -70,6 +73,21 @@ def stride_figures(
     }
 
 
+def stance_figures(
+    joints: np.ndarray, feet: list[int], rest: tuple[float, ...], legs: tuple[int, int], fps: float
+) -> dict[str, float]:
+    """Mean speed (m/s) of the lowest foot joint (``stance_speeds``, the ``w_stance`` term's measure) and
+    mean height gap (m) between the two legs' lowest-resting joints ``legs`` of ``joints`` (N, T, J, 3)
+    over resting heights ``rest`` of ``feet``: a gait stands on the lower foot and swings the other."""
+    tensor = torch.from_numpy(np.ascontiguousarray(joints[:, :, feet], dtype=np.float32))
+    speed = stance_speeds(tensor, rest, torch.ones(joints.shape[:2], dtype=torch.bool), fps)
+    heights = [joints[:, :, j, 1] - rest[feet.index(j)] for j in legs]
+    return {
+        "stance_m_s": round(float(speed.mean()), 3),
+        "foot_gap_m": round(float(np.abs(heights[0] - heights[1]).mean()), 3),
+    }
+
+
 def primed_decode(
     model: OdmoModel,
     z: torch.Tensor,
@@ -84,6 +102,18 @@ def primed_decode(
     for t in range(frames, truth.shape[1] - 1):
         previous[:, t] = model.decode_full(z, actions, ends, prev_truth=previous, tf_rate=1.0).raw[:, t]
     return model.decode_full(z, actions, ends, prev_truth=previous, tf_rate=1.0).joints
+
+
+def lowest_feet(loaded: LoadedModel) -> tuple[list[int], tuple[float, ...], tuple[int, int]] | None:
+    """The model's foot joints, their resting heights and each of two legs' lowest-resting foot joint
+    (None for a model without foot contacts or two legs)."""
+    config = loaded.config
+    feet, rest = list(config.foot_joints), tuple(config.foot_heights)
+    legs = [[j for j in (chain[2], *chain[3]) if j in feet] for chain in leg_chains(loaded.skeleton)]
+    if not rest or len(legs) != 2 or not all(legs):
+        return None
+    low = tuple(min(leg, key=lambda j: rest[feet.index(j)]) for leg in legs)
+    return feet, rest, (low[0], low[1])
 
 
 def full_windows(loaded: LoadedModel, clips: list[Motion]) -> list[Motion]:
@@ -129,6 +159,7 @@ def main() -> int:
     if len(ankles) != 2:
         raise SystemExit(f"{args.model}: the skeleton has no two legs to measure a stride on")
     hands, root = hand_joints(loaded.skeleton), loaded.skeleton.root
+    stance = lowest_feet(loaded)
     train_clips, test_clips = heldout_split(load_folder(args.data).clips)
     report = {}
     for action in args.actions:
@@ -148,6 +179,9 @@ def main() -> int:
         sets = {"real": real, "free": free, "forced": forced, f"primed_{args.prime}": primed}
         sets = {k: js.reshape(real.shape) for k, js in sets.items()}
         figures = {k: stride_figures(js, real, ankles, hands, root, loaded.fps) for k, js in sets.items()}
+        if stance is not None:
+            for k, js in sets.items():
+                figures[k] |= stance_figures(js, *stance, loaded.fps)
         effect = np.linalg.norm(sets["forced"] - swapped.reshape(real.shape), axis=-1).mean((0, 1))
         reads = {
             "previous_pose_effect_m": round(float(effect.mean()), 4),

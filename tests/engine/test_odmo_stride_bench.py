@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 import torch
 
-from bench.odmo_stride import primed_decode, probe_r2, stride_figures, strides
+from bench.odmo_stride import primed_decode, probe_r2, stance_figures, stride_figures, strides
 from engine.model.config import OdmoConfig
 from engine.model.odmo import OdmoModel
 
@@ -73,3 +73,18 @@ def test_the_code_probe_reads_what_the_codes_say_and_only_that() -> None:
     said = codes @ rng.normal(size=(20, 9)) + 0.01 * rng.normal(size=(200, 9))
     assert probe_r2(codes, said) > 0.99
     assert probe_r2(codes, rng.normal(size=(200, 9))) < 0.05
+
+
+def test_stance_figures_read_the_lower_foot_and_the_gap_between_the_feet() -> None:
+    """One foot on the floor standing still, the other 10 cm up moving at 1 m/s: the lowest foot stands
+    (2 mm/s, the square root's guard) and the gap is 10 cm; swap the heights and the lowest foot moves."""
+    joints = np.zeros((1, 40, 3, 3))
+    joints[0, :, 2, 1] = 0.1
+    joints[0, :, 2, 0] = np.arange(40) / 20.0
+    walking = stance_figures(joints, [1, 2], (0.0, 0.0), (1, 2), 20.0)
+    assert walking == {"stance_m_s": pytest.approx(0.002, abs=1e-3), "foot_gap_m": pytest.approx(0.1)}
+    skimming = joints.copy()
+    skimming[0, :, 1, 1], skimming[0, :, 2, 1] = 0.1, 0.0
+    assert stance_figures(skimming, [1, 2], (0.0, 0.0), (1, 2), 20.0)["stance_m_s"] == pytest.approx(
+        1.0, abs=1e-3
+    )
