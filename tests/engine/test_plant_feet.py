@@ -7,6 +7,7 @@ import pytest
 
 from engine.metrics.physics import floats
 from engine.motion.ik import (
+    PLANT_FADE_STEP,
     PLANT_RAMP,
     PLANT_REACH,
     PLANT_SLACK,
@@ -54,8 +55,13 @@ def test_a_planted_sliding_foot_is_pinned_and_the_leg_keeps_its_bones() -> None:
     np.testing.assert_allclose(toe[:, [0, 2]], np.broadcast_to(clip[10:30, 6, [0, 2]].mean(0), (20, 2)))
     np.testing.assert_allclose(_lengths(out)[:, 2:], _lengths(clip)[:, 2:], atol=1e-9)  # leg bones kept
     np.testing.assert_allclose(out[:, :4], clip[:, :4])  # hip and above untouched
-    far = list(range(0, 10 - PLANT_RAMP)) + list(range(30 + PLANT_RAMP, 40))
+    shift = np.linalg.norm(clip[10:30, 6, [0, 2]].mean(0) - clip[[10, 29]][:, 6][:, [0, 2]], axis=1)  # 0.14 m
+    fade = np.maximum(PLANT_RAMP, np.ceil(shift / PLANT_FADE_STEP)).astype(int)  # 5 frames, not 3
+    assert fade.min() > PLANT_RAMP
+    far = list(range(0, 10 - fade[0])) + list(range(30 + fade[1], 40))
     np.testing.assert_allclose(out[far], clip[far], atol=1e-9)  # away from the contact nothing moves
+    added = np.linalg.norm(np.diff(out[:, 6] - clip[:, 6], axis=0), axis=1)
+    assert added[list(range(0, 9)) + list(range(29, 39))].max() <= PLANT_FADE_STEP + 1e-9  # a gentle fade
     # the foot moves rigidly: the ankle-to-toe bone keeps its direction
     np.testing.assert_allclose(out[:, 6] - out[:, 5], clip[:, 6] - clip[:, 5], atol=1e-9)
 
@@ -150,3 +156,21 @@ def test_a_clip_whose_feet_never_come_down_is_lowered_onto_the_floor() -> None:
     out = plant_feet(batch, none, skeleton(), FEET, HEIGHTS)
     np.testing.assert_allclose(out, lowered, atol=1e-9)  # the clean-up lowers it before pinning
     np.testing.assert_allclose(plant_feet(batch, none, skeleton(), FEET, HEIGHTS, ground=False), batch)
+
+
+def test_a_nearly_straight_leg_keeps_its_knee_forward_when_its_foot_is_moved_ahead() -> None:
+    """Hip 0.9 m over the ankle, the knee 2 cm ahead of the line between them; the ankle pinned 0.3 m
+    ahead and 15 cm up: the new hip-to-ankle line passes in front of the decoded knee, yet the knee
+    bends forward of it (the side it was decoded on), never backwards, and both bones keep their
+    lengths."""
+    from engine.motion.ik import _two_bone
+
+    hip, ankle = np.array([[0.0, 0.9, 0.0]]), np.array([[0.0, 0.05, 0.0]])
+    knee = np.array([[0.0, 0.475, 0.02]])
+    target = np.array([[0.0, 0.2, 0.3]])
+    new_knee, reached = _two_bone(hip, knee, ankle, target)
+    np.testing.assert_allclose(reached, target, atol=1e-9)
+    np.testing.assert_allclose(np.linalg.norm(new_knee - hip), np.linalg.norm(knee - hip), atol=1e-9)
+    np.testing.assert_allclose(np.linalg.norm(reached - new_knee), np.linalg.norm(ankle - knee), atol=1e-9)
+    share = (hip[0, 1] - new_knee[0, 1]) / (hip[0, 1] - target[0, 1])
+    assert new_knee[0, 2] > share * target[0, 2] + 0.05  # ahead of the hip-to-ankle line
