@@ -31,8 +31,7 @@ from engine.motion.skeleton import Skeleton
 log = logging.getLogger(__name__)
 
 TWIST_POLICIES = ("minimal",)
-PLANT_RAMP = 3  # frames over which a planted foot's shift fades in and out, at least
-PLANT_FADE_STEP = 0.03  # metres a fading shift may add to a foot's step in one frame (longer fades if more)
+PLANT_RAMP = 3  # frames over which a planted foot's shift fades in and out
 PLANT_BRIDGE = 2  # frames: a shorter break between two contacts is the contact head flickering
 PLANT_REACH = 0.3  # metres a planted foot may be held along the floor from where it was decoded
 PLANT_SLACK = 0.04  # metres past the leg's length a pinned ankle may be placed (the IK lifts it that much)
@@ -173,9 +172,8 @@ def plant_feet(
     its resting height. It is held no more than ``reach`` metres along the floor from where it was
     decoded, nor further than the leg reaches from its hip (plus ``PLANT_SLACK``): a foot decoded
     sliding further is dragged rather than torn from the leg or lifted off the floor. The shift fades out
-    over ``ramp`` frames either side (more for a shift over ``ramp`` × ``PLANT_FADE_STEP``), and passes
-    linearly from one contact's shift to the next across a shorter gap, so pinning never makes a foot
-    jump. Any frame whose foot joints dip under their resting
+    over ``ramp`` frames either side, and passes linearly from one contact's shift to the next across a
+    shorter gap, so pinning never makes a foot jump. Any frame whose foot joints dip under their resting
     heights is lifted to them. The foot moves rigidly and the knee is re-solved by two-bone IK (hip fixed,
     bone lengths kept; a target out of reach is approached along the hip-to-target line), so the pose
     stays one a BVH holds exactly.
@@ -227,9 +225,8 @@ def _bridged(planted: np.ndarray, gap: int) -> np.ndarray:
 def _pin_shift(pos: np.ndarray, planted: np.ndarray, rest: float, ramp: int, reach: float) -> np.ndarray:
     """(B, T, 3) shift that holds joint positions ``pos`` (B, T, 3) at height ``rest`` and at the mean
     floor point of each contact (``planted`` (B, T)), or ``reach`` metres short of it where the joint
-    strays further. Between contacts the shift fades out linearly over ``ramp`` frames, or over as many as
-    keep each frame's share of it within ``PLANT_FADE_STEP``, and across a gap too short for both fades it
-    passes linearly from one contact's shift to the next one's."""
+    strays further. Between contacts the shift fades out linearly over ``ramp`` frames, and across a gap
+    too short for both fades it passes linearly from one contact's shift to the next one's."""
     b, t = planted.shape
     starts = planted & ~np.concatenate([np.zeros((b, 1), bool), planted[:, :-1]], axis=1)
     seg = np.cumsum(starts, axis=1) + (np.arange(b) * (t + 1))[:, None]
@@ -243,16 +240,12 @@ def _pin_shift(pos: np.ndarray, planted: np.ndarray, rest: float, ramp: int, rea
     delta[..., [0, 2]] *= np.minimum(1.0, reach / np.maximum(far, _EPS))[..., None]
     delta[..., 1][planted] = rest - pos[..., 1][planted]
     last, nxt = _spans(planted)
+    frames = np.arange(t)[None, :]
+    span = np.where((last >= 0) & (nxt < t), np.clip(nxt - last, 1, ramp + 1), ramp + 1)
+    fade_out = np.where(last >= 0, np.clip(1.0 - (frames - last) / span, 0.0, 1.0), 0.0)
+    fade_in = np.where(nxt < t, np.clip(1.0 - (nxt - frames) / span, 0.0, 1.0), 0.0)
     before = np.take_along_axis(delta, np.clip(last, 0, t - 1)[..., None], axis=1)
     after = np.take_along_axis(delta, np.clip(nxt, 0, t - 1)[..., None], axis=1)
-    frames = np.arange(t)[None, :]
-    between = (last >= 0) & (nxt < t)
-    spans = []
-    for shift in (before, after):
-        need = np.maximum(ramp, np.ceil(np.linalg.norm(shift, axis=-1) / PLANT_FADE_STEP)) + 1
-        spans.append(np.where(between, np.clip(nxt - last, 1, need), need))
-    fade_out = np.where(last >= 0, np.clip(1.0 - (frames - last) / spans[0], 0.0, 1.0), 0.0)
-    fade_in = np.where(nxt < t, np.clip(1.0 - (nxt - frames) / spans[1], 0.0, 1.0), 0.0)
     return np.where(planted[..., None], delta, fade_out[..., None] * before + fade_in[..., None] * after)
 
 

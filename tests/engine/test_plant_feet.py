@@ -7,7 +7,6 @@ import pytest
 
 from engine.metrics.physics import floats
 from engine.motion.ik import (
-    PLANT_FADE_STEP,
     PLANT_RAMP,
     PLANT_REACH,
     PLANT_SLACK,
@@ -55,13 +54,8 @@ def test_a_planted_sliding_foot_is_pinned_and_the_leg_keeps_its_bones() -> None:
     np.testing.assert_allclose(toe[:, [0, 2]], np.broadcast_to(clip[10:30, 6, [0, 2]].mean(0), (20, 2)))
     np.testing.assert_allclose(_lengths(out)[:, 2:], _lengths(clip)[:, 2:], atol=1e-9)  # leg bones kept
     np.testing.assert_allclose(out[:, :4], clip[:, :4])  # hip and above untouched
-    shift = np.linalg.norm(clip[10:30, 6, [0, 2]].mean(0) - clip[[10, 29]][:, 6][:, [0, 2]], axis=1)  # 0.14 m
-    fade = np.maximum(PLANT_RAMP, np.ceil(shift / PLANT_FADE_STEP)).astype(int)  # 5 frames, not 3
-    assert fade.min() > PLANT_RAMP
-    far = list(range(0, 10 - fade[0])) + list(range(30 + fade[1], 40))
+    far = list(range(0, 10 - PLANT_RAMP)) + list(range(30 + PLANT_RAMP, 40))
     np.testing.assert_allclose(out[far], clip[far], atol=1e-9)  # away from the contact nothing moves
-    added = np.linalg.norm(np.diff(out[:, 6] - clip[:, 6], axis=0), axis=1)
-    assert added[list(range(0, 9)) + list(range(29, 39))].max() <= PLANT_FADE_STEP + 1e-9  # a gentle fade
     # the foot moves rigidly: the ankle-to-toe bone keeps its direction
     np.testing.assert_allclose(out[:, 6] - out[:, 5], clip[:, 6] - clip[:, 5], atol=1e-9)
 
