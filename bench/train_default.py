@@ -4,9 +4,9 @@
 
 The defaults are the bundled model's settings (100 epochs, teacher forcing decaying from 1 towards 0.3
 over those 100 epochs, no same-action pull, the loss weights of ``BUNDLED_WEIGHTS``, log speed errors, the
-free-running skate term on the decode's own contacts, seed 0, one torch thread: training results differ
-between thread counts). The evaluation classifier in --work/classifier is
-reused when present.
+free-running skate term on the decode's own contacts, the reversed encoder, the residual pose decoder
+started at the mean pose, seed 0, one torch thread: training results differ between thread counts). The
+evaluation classifier in --work/classifier is reused when present.
 
 Holds out 15 % of the clips (stratified by action and style, seed 2022; see bench/heldout.py), trains
 ODMO on the rest, trains the evaluation classifier on the same training clips, evaluates on the held-out
@@ -54,7 +54,8 @@ from engine.train.loop import train
 #: The bundled model's loss weights where they differ from OdmoConfig's defaults (README, "Where the model
 #: differs from the paper").
 BUNDLED_WEIGHTS = ("w_skate=0.01", "w_free=1", "w_speed=0.1", "w_velocity=0.1", "w_spectrum=0.5")
-BUNDLED_WEIGHTS += ("w_free_skate=0.05", "w_foot_height=10", "w_heading=1", "w_twist=1")
+BUNDLED_WEIGHTS += ("w_free_skate=0.05", "w_foot_height=10", "w_heading=1", "w_twist=1", "w_start=10")
+BUNDLED_WEIGHTS += ("w_stance=1",)
 DEFAULT_OUT = Path(__file__).resolve().parents[1] / "resources" / "models" / "bandai2-odmo"
 
 
@@ -129,25 +130,28 @@ def parse_args() -> argparse.Namespace:
     )
     p.add_argument(
         "--mean-pose-init",
-        action="store_true",
+        action=argparse.BooleanOptionalAction,
+        default=True,
         help="start the pose decoder's output at the mean training pose (OdmoConfig.mean_pose_init)",
     )
     p.add_argument(
         "--pose-output",
         choices=POSE_OUTPUTS,
         default="joints",
-        help="what the pose decoder emits: joint positions, or local rotations (OdmoConfig.pose_output)",
+        help="what the pose decoder emits: joint positions, or local rotations (OdmoConfig.pose_output; "
+        "rotations need --pose-update absolute)",
     )
     p.add_argument(
         "--pose-update",
         choices=POSE_UPDATES,
-        default="absolute",
+        default="residual",
         help="a joint decoder's poses afresh each frame, or as steps from the previous pose "
         "(OdmoConfig.pose_update)",
     )
     p.add_argument(
         "--encoder-reverse",
-        action="store_true",
+        action=argparse.BooleanOptionalAction,
+        default=True,
         help="the LMP encoder reads each window backwards (OdmoConfig.encoder_reverse)",
     )
     p.add_argument(

