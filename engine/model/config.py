@@ -94,7 +94,7 @@ class OdmoConfig(ModelConfig):
     planted (``free_skate_contacts`` "data") or where that decode's own are ("own": a free decode's
     stride drifts out of step with the data's). ``w_foot_height`` weights the squared error of that
     decode's sorted foot heights (how long each foot spends at each height, phase-free), ``w_stance`` the
-    squared error of the RMS speed of its lowest foot against the data's (the foot it puts down stands;
+    squared error of the mean speed of its lowest foot against the data's (the foot it puts down stands;
     sorted heights say nothing of which foot is down while the other swings), ``w_heading``
     the squared error of the cosine between its hips' axis and its direction of travel (a body that
     does not face its path), ``w_twist`` the squared error of its torso twist per frame (the shoulders'
