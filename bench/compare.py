@@ -448,12 +448,14 @@ def _fresh_eval(
     saved: Path, folder: Path, classifier: Classifier, evaluation: dict[str, Any], strategy: str | None
 ) -> bool:
     """Whether ``saved`` evaluated the model now in ``folder`` (written after its weights) with this
-    classifier (same held-out accuracy), evaluation settings and strategy (None: a kind without one)."""
+    classifier (same held-out accuracy), evaluation settings and strategy (None: whichever its kind's
+    evaluation uses)."""
     weights = Path(folder) / "model.safetensors"
     if not saved.is_file() or not weights.is_file() or saved.stat().st_mtime < weights.stat().st_mtime:
         return False
     meta = json.loads(saved.read_text()).get("meta", {})
-    same = all(meta.get(k) == v for k, v in evaluation.items()) and meta.get("strategy") == strategy
+    same_strategy = strategy is None or meta.get("strategy") == strategy
+    same = all(meta.get(k) == v for k, v in evaluation.items()) and same_strategy
     same_classifier = meta.get("classifier_test_accuracy") == classifier.test_accuracy
     return same and same_classifier and meta.get("model") == str(folder)
 
