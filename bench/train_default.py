@@ -97,6 +97,12 @@ def parse_args() -> argparse.Namespace:
         help="first frames of the free-running decode the w_start term compares (OdmoConfig.start_frames)",
     )
     p.add_argument(
+        "--rollout-frames",
+        type=int,
+        default=15,
+        help="frames the w_rollout term decodes free-running after teacher-forced ones",
+    )
+    p.add_argument(
         "--speed-span",
         type=int,
         default=0,
@@ -216,6 +222,7 @@ def main() -> int:
         free_span=args.free_span,
         free_shift=args.free_shift,
         start_frames=args.start_frames,
+        rollout_frames=args.rollout_frames,
         speed_span=args.speed_span,
         spectrum_span=args.spectrum_span,
         spectrum_legs=not args.spectrum_no_legs,
@@ -425,6 +432,11 @@ def model_switches(config: OdmoConfig) -> str:
         parts.append(
             f"`w_start = {config.w_start:g}` (a loss on that decode's first {config.start_frames} "
             "root-relative poses)"
+        )
+    if config.w_rollout > 0:
+        parts.append(
+            f"`w_rollout = {config.w_rollout:g}` (a loss on {config.rollout_frames} poses decoded "
+            "free-running after teacher-forced ones, from a random frame)"
         )
     if config.w_speed > 0:
         what = "log " if config.speed_error == "log" else ""

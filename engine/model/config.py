@@ -40,6 +40,7 @@ _BEFORE_SWITCHES = {
     "encoder_reverse": False,
     "w_stance": 0.0,
     "clock_hz": (),
+    "w_rollout": 0.0,
 }
 SCHEDULED_SAMPLING = ("one_step", "free_run")
 #: The paper's model in one setting, ``OdmoConfig(n_actions, n_joints, **PAPER)``: every project change off.
@@ -79,9 +80,13 @@ class OdmoConfig(ModelConfig):
     the phase-free terms; with ``free_shift`` > 0 on root-relative poses at the time shift of at most that
     many frames that fits each window best, so a decode out of phase with the data keeps its amplitude),
     ``w_start`` the squared error of that decode's first ``start_frames`` root-relative poses (the decoder
-    keeps a gait it is started in, so the code must carry where in its cycle the motion starts) and
+    keeps a gait it is started in, so the code must carry where in its cycle the motion starts),
+    ``w_rollout`` the squared error of ``rollout_frames`` root-relative poses decoded free-running from a
+    random frame on, after teacher-forced ones before it (``OdmoModel.rollout``: the decoder learns to
+    continue a motion whose phase it has seen; on the decode from the first frame, whose phase drifts,
+    L2 rewards damping) and
     ``w_speed`` the squared error of that decode's per-window mean joint speeds (which, unlike an L2
-    loss on positions, does not reward a still mean pose when the phase is uncertain); both are off by
+    loss on positions, does not reward a still mean pose when the phase is uncertain); all three are off by
     default, measured in the README ("Where the model differs from the paper"). The skate and speed
     terms are in m²/s²; ``speed_error`` "log" compares log speeds instead (relative errors: a slow
     wave's hand weighs as much as a run's feet); ``speed_span`` > 0 compares them over each run of that
@@ -170,6 +175,8 @@ class OdmoConfig(ModelConfig):
     free_shift: int = 0
     w_start: float = 0.0
     start_frames: int = 3
+    w_rollout: float = 0.0
+    rollout_frames: int = 15
     w_speed: float = 0.0
     speed_error: str = "absolute"
     speed_span: int = 0
@@ -194,12 +201,12 @@ class OdmoConfig(ModelConfig):
 
     POSITIVE = ("n_actions", "n_joints", "window", "fps", "latent_dim", "enc_hidden", "enc_fc", "traj_hidden")
     POSITIVE += ("motion_hidden", "prior_sigma2", "lr", "batch_size", "epoch_size", "free_span")
-    POSITIVE += ("start_frames",)
+    POSITIVE += ("start_frames", "rollout_frames")
     NON_NEGATIVE = ("w_recon", "w_traj", "w_consistency", "w_contrastive", "w_prior", "traj_y_weight")
     NON_NEGATIVE += ("w_raw", "w_contact", "w_velocity", "contrastive_pull", "epochs", "tf_decay_epochs")
     NON_NEGATIVE += ("w_skate", "w_free", "w_speed", "w_spectrum", "w_free_skate", "w_foot_height")
     NON_NEGATIVE += ("w_heading", "w_twist", "w_coordination", "speed_span", "spectrum_span", "free_shift")
-    NON_NEGATIVE += ("w_start", "w_stance")
+    NON_NEGATIVE += ("w_start", "w_stance", "w_rollout")
     RATES = ("tf_start", "tf_end")
     CHOICES: ClassVar[dict[str, tuple[str, ...]]] = {
         "train_precision": TRAIN_PRECISIONS,
@@ -219,6 +226,10 @@ class OdmoConfig(ModelConfig):
             raise ConfigError("pose_output 'rotations' needs root_relative_poses (the root is its path)")
         if self.pose_update == "residual" and self.pose_output != "joints":
             raise ConfigError("pose_update 'residual' steps joint positions: it needs pose_output 'joints'")
+        if self.w_rollout > 0 and self.rollout_frames >= self.window:
+            raise ConfigError(
+                f"rollout_frames must be below the window ({self.window}), got {self.rollout_frames}"
+            )
         if self.batch_size < 2:
             raise ConfigError("batch_size must be at least 2 (windows come in contrastive pairs)")
         try:

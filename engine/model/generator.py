@@ -306,6 +306,28 @@ class MotionGenerator(nn.Module):
         poses, hidden = self._run(prev, const, state)
         return self._absolute(poses, trajectory), hidden
 
+    def rollout(self, trajectory: Tensor, cond: Tensor, truth: Tensor, start: int, frames: int) -> Tensor:
+        """Poses (B, frames, J·3) of frames ``start`` … ``start + frames − 1`` decoded free-running after
+        teacher-forced frames before ``start`` (previous poses the real ``truth`` (B, T, J, 3)'s): how the
+        decoder continues a motion whose phase it has been shown."""
+        if not 1 <= start <= self.window - frames:
+            raise ValueError(f"a {frames}-frame rollout cannot start at frame {start} of {self.window}")
+        b = cond.shape[0]
+        state, const = self._context(trajectory, cond)
+        gt = self._readback(truth.reshape(b, self.window, self.pose_dim))
+        w_pose = self.embed.weight[:, : self.pose_dim]
+        prev = torch.cat([self._first_previous(b).to(gt.dtype).unsqueeze(1), gt[:, : start - 1]], dim=1)
+        _, state = self.lstm(self.embed_act(const[:, :start] + F.linear(prev, w_pose)), state)
+        last, poses = gt[:, start - 1], []
+        for t in range(start, start + frames):
+            out, state = self.lstm(
+                self.embed_act(const[:, t : t + 1] + F.linear(last, w_pose)[:, None]), state
+            )
+            pose = self._pose(self.out(out[:, 0]).float())
+            poses.append(last + pose if self.residual else pose)
+            last = self._readback(poses[-1])
+        return torch.stack(poses, dim=1)
+
     def _readback(self, poses: Tensor) -> Tensor:
         """Poses (..., J·3) as the decoder reads them back: root-centred if relative (a linear map)."""
         if not self.relative:

@@ -33,6 +33,7 @@ LOSS_TERMS = (
     "coordination",
     "start",
     "stance",
+    "rollout",
 )
 STANCE_TAU = 0.01  # metres: how much lower a foot joint must be than another to take the weight
 
@@ -418,6 +419,7 @@ def odmo_losses(
     hips: tuple[int, int] | None = None,
     shoulders: tuple[int, int] | None = None,
     coordination_on: Sequence[int] | None = None,
+    rollout: tuple[int, Tensor] | None = None,
 ) -> dict[str, Tensor]:
     """Every loss term and the weighted ``total``.
 
@@ -437,6 +439,8 @@ def odmo_losses(
     hips : the two hips of the heading and twist terms (``hip_pair``; None: neither term).
     shoulders : the two shoulders of the twist term (``shoulder_pair``; None: no twist term).
     coordination_on : the joints the coordination term compares (``coordination_joints``; None: all).
+    rollout : the first frame and the joints (2B, K, J, 3) of a rollout (``OdmoModel.rollout``; None: no
+        rollout term).
     """
     axis = torch.tensor([1.0, config.traj_y_weight, 1.0], device=joints.device)
     zero = joints.new_zeros(())
@@ -461,6 +465,7 @@ def odmo_losses(
         "coordination": zero,
         "start": zero,
         "stance": zero,
+        "rollout": zero,
     }
     twist_on = free_joints is not None and hips is not None and shoulders is not None
     if free_joints is not None:
@@ -491,6 +496,11 @@ def odmo_losses(
             if config.free_skate_contacts == "own":
                 contacts = own_contacts(free_feet, rest, mask)
             terms["free_skate"] = skate_loss(free_feet, contacts, mask, config.fps)
+    if rollout is not None:
+        start, rolled = rollout
+        span = slice(start, start + rolled.shape[1])
+        truth = about_root(joints[:, span], root)
+        terms["rollout"] = masked_mse(about_root(rolled, root), truth, mask[:, span])
     free_feet_on = free_joints is not None and contact_logits is not None
     weights = {
         "recon": config.w_recon,
@@ -512,6 +522,7 @@ def odmo_losses(
         "coordination": config.w_coordination if free_joints is not None else 0.0,
         "start": config.w_start if free_joints is not None else 0.0,
         "stance": config.w_stance if free_feet_on else 0.0,
+        "rollout": config.w_rollout if rollout is not None else 0.0,
     }
     terms["total"] = sum(weights[k] * terms[k] for k in LOSS_TERMS if weights[k] > 0)
     return terms

@@ -155,6 +155,18 @@ class OdmoModel(nn.Module):
         contact = None if self.contact is None else self.contact(hidden).float()
         return Decoded(joints, traj, raw, contact)
 
+    def rollout(
+        self, z: Tensor, action: Tensor, end: Tensor | None, truth: Tensor, start: int, frames: int
+    ) -> Tensor:
+        """Joints (B, frames, J, 3) of frames ``start`` … ``start + frames − 1`` decoded free-running after
+        teacher-forced ones (``MotionGenerator.rollout``), on the skeleton as ``decode_full`` places them."""
+        cond = self.condition(z, action)
+        traj = self.traj_gen(cond, end)
+        raw = self.motion_gen.rollout(traj, cond, truth, start, frames).unflatten(-1, (-1, 3))
+        if self.config.root_relative_poses:
+            raw = raw - raw[..., :1, :] + traj[:, start : start + frames, None]
+        return raw if self.projection is None else self.projection(raw)
+
 
 def _slices(end: Tensor | None, n: int) -> list[tuple[int, Tensor | None]]:
     """Start of each DECODE_SLICE-sized slice of ``n`` rows, with its rows of ``end`` (or None)."""

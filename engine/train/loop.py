@@ -119,6 +119,11 @@ def _forward(
     )
     if any(getattr(config, name) > 0 for name in free_terms):
         free = out.joints if truth is None else model.decode_full(z, data.actions, end).joints
+    rollout = None
+    if config.w_rollout > 0:
+        start = (config.window - config.rollout_frames) // 2 if noise is None else noise.rollout_start
+        rolled = model.rollout(z, data.actions, end, data.joints, start, config.rollout_frames)
+        rollout = (start, rolled)
     return odmo_losses(
         config,
         joints=data.joints,
@@ -138,16 +143,18 @@ def _forward(
         hips=roles.hips,
         shoulders=roles.shoulders,
         coordination_on=roles.coordination_on,
+        rollout=rollout,
     )
 
 
 @dataclass
 class _Noise:
-    """A training batch's random draws: the codes' reparameterisation noise and the teacher-forcing draws
-    (None when every frame is teacher-forced)."""
+    """A training batch's random draws: the codes' reparameterisation noise, the teacher-forcing draws
+    (None when every frame is teacher-forced) and the rollout's first frame (0 without ``w_rollout``)."""
 
     eps: torch.Tensor
     tf: torch.Tensor | None
+    rollout_start: int = 0
 
     @classmethod
     def draw(
@@ -158,11 +165,15 @@ class _Noise:
         tf = None
         if tf_rate < 1.0:
             tf = torch.rand((n, config.window - 1, 1), generator=generator, device=device)
-        return cls(eps, tf)
+        start = 0
+        if config.w_rollout > 0:
+            last = config.window - config.rollout_frames
+            start = int(torch.randint(1, last + 1, (1,), generator=generator, device=device))
+        return cls(eps, tf, start)
 
     def take(self, rows: torch.Tensor) -> _Noise:
         """The draws of ``rows`` of the batch."""
-        return _Noise(self.eps[rows], None if self.tf is None else self.tf[rows])
+        return _Noise(self.eps[rows], None if self.tf is None else self.tf[rows], self.rollout_start)
 
 
 class _StepLoss(torch.nn.Module):

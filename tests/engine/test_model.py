@@ -862,6 +862,60 @@ def test_the_stance_term_is_the_speed_of_the_lowest_foot() -> None:
     assert OdmoConfig.from_dict({k: v for k, v in cfg.to_dict().items() if k != "w_stance"}).w_stance == 0.0
 
 
+@pytest.mark.parametrize("update", ["absolute", "residual"])
+def test_a_rollout_is_the_decode_fed_real_poses_up_to_its_start_then_its_own(update: str) -> None:
+    """Frames 4…8 of a rollout from frame 4 are those of a teacher-forced decode whose previous poses
+    after frame 3 are its own, fed back one at a time (independent of the rollout's code); its first
+    frame is the teacher-forced one; a rollout cannot start at frame 0 or run past the window."""
+    model = _model(pose_update=update).eval()
+    z, action, end = torch.randn(2, 20), torch.tensor([0, 2]), torch.randn(2, 3)
+    truth = torch.randn(2, T, J, 3)
+    with torch.no_grad():
+        rolled = model.rollout(z, action, end, truth, 4, 5)
+        forced = model.decode_full(z, action, end, prev_truth=truth, tf_rate=1.0).joints
+        previous = truth.clone()
+        for t in range(4, 8):
+            previous[:, t] = model.decode_full(z, action, end, prev_truth=previous, tf_rate=1.0).raw[:, t]
+        fed = model.decode_full(z, action, end, prev_truth=previous, tf_rate=1.0).joints
+    assert rolled.shape == (2, 5, J, 3)
+    torch.testing.assert_close(rolled, fed[:, 4:9], atol=1e-5, rtol=0)
+    torch.testing.assert_close(rolled[:, 0], forced[:, 4], atol=1e-5, rtol=0)
+    assert (rolled[:, 1:] - forced[:, 5:9]).abs().max() > 1e-3  # its own poses, not the real ones
+    for start in (0, T - 4):
+        with pytest.raises(ValueError, match="rollout"):
+            model.rollout(z, action, end, truth, start, 5)
+
+
+def test_the_rollout_term_compares_the_rolled_frames_about_the_root() -> None:
+    """A rollout of frames 10…24 that is the swing a quarter cycle late costs the per-frame error over
+    those frames only, wherever its root is; padded frames count for nothing; through ``odmo_losses``
+    it is weighted by ``w_rollout``; the frame count must stay below the window."""
+    truth, late = _swing_at(0.0), _swing_at(0.25)
+    mask = torch.ones(1, 60, dtype=torch.bool)
+    span = slice(10, 25)
+    expected = float(
+        masked_mse(late[:, span] - late[:, span, :1], truth[:, span] - truth[:, span, :1], mask[:, span])
+    )
+    assert expected > 1e-3
+    rolled = late[:, span] + torch.tensor([3.0, 0.0, -2.0], dtype=torch.float64)
+    kw = {"mu": torch.zeros(2, 20), "logvar": torch.zeros(2, 20), "same": torch.tensor([True]), "root": 0}
+    kw |= {"joints": truth.float().repeat(2, 1, 1, 1), "trajectory": truth[:, :, 0].float().repeat(2, 1, 1)}
+    kw |= {"mask": mask.repeat(2, 1), "pred_joints": truth.float().repeat(2, 1, 1, 1)}
+    kw |= {"pred_trajectory": truth[:, :, 0].float().repeat(2, 1, 1)}
+    cfg = OdmoConfig(n_actions=2, n_joints=2, w_rollout=4.0)
+    losses = odmo_losses(cfg, **kw, rollout=(10, rolled.float().repeat(2, 1, 1, 1)))
+    assert float(losses["rollout"]) == pytest.approx(expected, rel=1e-5)
+    assert float(losses["total"]) == pytest.approx(4 * expected + float(losses["prior"]), rel=1e-4)
+    padded = mask.repeat(2, 1)
+    padded[:, 10:25] = False
+    gone = odmo_losses(cfg, **(kw | {"mask": padded}), rollout=(10, rolled.float().repeat(2, 1, 1, 1)))
+    assert float(gone["rollout"]) == 0.0
+    assert float(odmo_losses(cfg, **kw)["rollout"]) == 0.0
+    assert OdmoConfig.from_dict({k: v for k, v in cfg.to_dict().items() if k != "w_rollout"}).w_rollout == 0.0
+    with pytest.raises(ConfigError, match="rollout_frames"):
+        OdmoConfig(n_actions=2, n_joints=2, window=20, w_rollout=1.0, rollout_frames=20)
+
+
 def _crab(deg: float, t: int = 20) -> torch.Tensor:
     """(1, t, 3, 3): a root and two hips walking along +x at 1.2 m/s, the hip axis turned ``deg`` from +z."""
     clip = torch.zeros(1, t, 3, 3)

@@ -14,7 +14,7 @@ from engine.errors import CancelledError, ModelFormatError
 from engine.model.losses import LOSS_TERMS
 from engine.motion.motion import Motion
 from engine.train.epochs import TrainProgress, write_log
-from engine.train.loop import train
+from engine.train.loop import _Noise, train
 from engine.train.pairs import PairSampler, split_clips
 from tests.fixtures.procedural import PROCEDURAL_ACTIONS
 from tests.fixtures.tiny_model import single_thread, tiny_config
@@ -43,6 +43,23 @@ def test_short_training_lowers_every_loss_term(tiny_model_dir: Path) -> None:
             continue
         assert last < first, term
     assert float(rows[0]["tf_rate"]) == 1.0 > float(rows[-1]["tf_rate"])
+
+
+def test_the_rollout_term_trains_from_random_frames(tmp_path: Path, procedural_clips: list[Motion]) -> None:
+    """With ``w_rollout`` on, each batch's rollout starts at a frame drawn from 1 … T − K (every one
+    reached); validation rolls out from the middle; the term falls as the model trains."""
+    cfg = tiny_config(w_rollout=10.0, rollout_frames=15)
+    generator = torch.Generator().manual_seed(0)
+    starts = {_Noise.draw(4, cfg, 0.5, generator, torch.device("cpu")).rollout_start for _ in range(2000)}
+    assert starts == set(range(1, cfg.window - 15 + 1))
+    assert _Noise.draw(4, tiny_config(), 0.5, generator, torch.device("cpu")).rollout_start == 0
+    with single_thread():
+        train(procedural_clips[::2], PROCEDURAL_ACTIONS, tmp_path, tiny_config(w_rollout=10.0, epochs=4),
+              seed=3, device="cpu", bank_projections=("pca",), bank_k_range=(3, 3))  # fmt: skip
+    with open(tmp_path / "train_log.csv", newline="") as handle:
+        rows = list(csv.DictReader(handle))
+    assert float(rows[-1]["train_rollout"]) < float(rows[0]["train_rollout"])
+    assert 0 < float(rows[-1]["val_rollout"]) < float(rows[0]["val_rollout"])
 
 
 def test_write_log_writes_a_csv_and_nothing_without_rows(tmp_path: Path) -> None:
