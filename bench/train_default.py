@@ -155,6 +155,11 @@ def parse_args() -> argparse.Namespace:
         "(OdmoConfig.pose_update)",
     )
     p.add_argument(
+        "--step-input",
+        action="store_true",
+        help="a residual decoder also reads its previous step (OdmoConfig.step_input)",
+    )
+    p.add_argument(
         "--encoder-reverse",
         action=argparse.BooleanOptionalAction,
         default=True,
@@ -232,6 +237,7 @@ def main() -> int:
         mean_pose_init=args.mean_pose_init,
         pose_output=args.pose_output,
         pose_update=args.pose_update,
+        step_input=args.step_input,
         encoder_reverse=args.encoder_reverse,
         clock_hz=tuple(args.clock_hz),
         traj_y_weight=args.traj_y_weight,
@@ -415,6 +421,8 @@ def model_switches(config: OdmoConfig) -> str:
         parts.append("`encoder_reverse` (the LMP encoder reads each window from its end back to its start)")
     if config.pose_update == "residual":
         parts.append("`pose_update = residual` (each frame's pose a step from the previous one)")
+    if config.step_input:
+        parts.append("`step_input` (the pose decoder also reads its previous step)")
     if config.foot_contact:
         parts.append(
             "`foot_contact` (a foot-contact head and loss; planted feet pinned to the floor at decode time)"

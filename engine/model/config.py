@@ -41,6 +41,7 @@ _BEFORE_SWITCHES = {
     "w_stance": 0.0,
     "clock_hz": (),
     "w_rollout": 0.0,
+    "step_input": False,
 }
 SCHEDULED_SAMPLING = ("one_step", "free_run")
 #: The paper's model in one setting, ``OdmoConfig(n_actions, n_joints, **PAPER)``: every project change off.
@@ -120,7 +121,10 @@ class OdmoConfig(ModelConfig):
     as the "joints" decoder does, and needs ``root_relative_poses``. ``pose_update`` "residual" has a
     joint decoder emit each frame as a step from the previous pose, from a learned start pose (the
     paper's emits every pose afresh, and a decoder that does not read a joint's previous position, as the
-    waves' hands measured in the README, holds it still at its mean). ``encoder_reverse`` has the LMP
+    waves' hands measured in the README, holds it still at its mean). ``step_input`` has that decoder
+    also read its previous step (each frame's previous pose minus the one before): a decoder that reads
+    only where a joint is must infer from its own state which way it moves, and one-step predictions it
+    cannot make shrink to the mean, which damps a swing it runs free. ``encoder_reverse`` has the LMP
     encoder read each window backwards, ending at its first frame: the paper's forward LSTM ends at the
     last frame, and its codes say little of where the window starts, which the decoder must produce first.
     ``clock_hz`` feeds the pose decoder sin and cos of each frame's time at these frequencies (Hz): its
@@ -195,6 +199,7 @@ class OdmoConfig(ModelConfig):
     mean_pose_init: bool = False
     pose_output: str = "joints"
     pose_update: str = "absolute"
+    step_input: bool = False
     encoder_reverse: bool = False
     clock_hz: tuple[float, ...] = ()
     arch: str = "odmo"
@@ -226,6 +231,10 @@ class OdmoConfig(ModelConfig):
             raise ConfigError("pose_output 'rotations' needs root_relative_poses (the root is its path)")
         if self.pose_update == "residual" and self.pose_output != "joints":
             raise ConfigError("pose_update 'residual' steps joint positions: it needs pose_output 'joints'")
+        if self.step_input and self.pose_update != "residual":
+            raise ConfigError(
+                "step_input feeds back the decoder's own steps: it needs pose_update 'residual'"
+            )
         if self.w_rollout > 0 and self.rollout_frames >= self.window:
             raise ConfigError(
                 f"rollout_frames must be below the window ({self.window}), got {self.rollout_frames}"

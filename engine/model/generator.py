@@ -39,6 +39,9 @@ def _free_run_loop(
     bias: list[Tensor],
     start: Tensor,
     residual: bool,
+    fused_step: Tensor,
+    bias_step: Tensor,
+    stepped: bool,
 ) -> Tensor:
     """Top-layer hidden states (B, T, H) of the free-running decoder (TorchScript-compatible).
 
@@ -47,7 +50,8 @@ def _free_run_loop(
     (H, H) the transposed product W_pose·W_out, ``slope`` the PReLU weight; per layer ``w_ih`` (in, 4H)
     and ``w_hh`` (H, 4H) are transposed and ``bias`` (4H,) summed, laid out by ``_loop_gates``. ``start``
     (H,) is what frame 0's previous pose adds to its input; with ``residual`` each frame's output is a
-    step from the previous pose, so the pose terms add up.
+    step from the previous pose, so the pose terms add up, and with ``stepped`` the next frame also reads
+    that step (``fused_step`` and ``bias_step`` as ``fused`` and ``bias_next`` for the step's columns).
     """
     h = [h0[k] for k in range(len(w_ih))]
     c = [c0[k] for k in range(len(w_ih))]
@@ -59,6 +63,8 @@ def _free_run_loop(
         if t > 0 and residual:  # W_pose·(previous pose + previous output)
             pose_term = torch.addmm(pose_term + bias_next, h[-1], fused)
             x = const[:, t] + pose_term
+            if stepped:
+                x = x + torch.addmm(bias_step, h[-1], fused_step)
         elif t > 0:
             x = torch.addmm(steps[t], h[-1], fused)
         tops.append(_cell_stack(F.prelu(x, slope), h, c, w_ih, w_hh, bias))
@@ -158,7 +164,10 @@ class MotionGenerator(nn.Module):
     step added to the previous pose, and frame 0's previous pose is a learned start pose: a joint the
     decoder does not move stays where it was instead of falling back to a pose of its own. With
     ``clock_hz`` each frame's input also holds sin and cos of 2π·f·t at each frequency f (Hz, t in seconds
-    from the window's first frame): rhythms that do not die out however long the decoder runs.
+    from the window's first frame): rhythms that do not die out however long the decoder runs. With
+    ``step_input`` (``residual`` only) each frame's input also holds the previous frame's step (its pose
+    minus the one before; zero at frame 0), so the decoder reads how each joint moves, not only where
+    it is: a swing it is shown it can continue.
     """
 
     def __init__(
@@ -174,13 +183,17 @@ class MotionGenerator(nn.Module):
         rotations: bool = False,
         residual: bool = False,
         clock_hz: tuple[float, ...] = (),
+        step_input: bool = False,
     ):
         super().__init__()
+        if step_input and not residual:
+            raise ValueError("a decoder reads its previous step only when it steps (residual)")
         if rotations and not relative:
             raise ValueError("a rotation decoder places joints about the root: it needs relative poses")
         if rotations and residual:
             raise ValueError("a residual decoder steps joint positions: it cannot emit rotations")
         self.residual = residual
+        self.step_input = step_input
         self.rotations = rotations
         self.n_joints = n_joints
         self.free_running_samples = free_running_samples
@@ -192,7 +205,7 @@ class MotionGenerator(nn.Module):
         self.fps = fps
         self.traj_embed = nn.Sequential(nn.Linear(3, hidden), nn.PReLU())
         self.traj_lstm = nn.LSTM(hidden, hidden, num_layers=2, batch_first=True)
-        extra = 1 + (3 if velocity_input else 0) + 2 * len(clock_hz)
+        extra = 1 + (3 if velocity_input else 0) + 2 * len(clock_hz) + (self.pose_dim if step_input else 0)
         self.embed = nn.Linear(self.pose_dim + cond_dim + extra, hidden)
         self.embed_act = nn.PReLU()
         self.lstm = nn.LSTM(hidden, hidden, num_layers=2, batch_first=True)
@@ -245,14 +258,22 @@ class MotionGenerator(nn.Module):
             const = const + F.linear(steps, weight[:, at_clock : at_clock + 3])
             at_clock += 3
         if self.clock.shape[-1]:
-            const = const + F.linear(self.clock, weight[:, at_clock:])
+            const = const + F.linear(self.clock, weight[:, at_clock : at_clock + self.clock.shape[-1]])
         return state, const
+
+    def _inputs(self, prev: Tensor, const: Tensor) -> Tensor:
+        """Each frame's embedded input (B, T', H) given its previous pose ``prev`` (B, T', J·3) and its
+        pose-free term ``const``; with ``step_input`` the step between consecutive previous poses too."""
+        x = const + F.linear(prev, self.embed.weight[:, : self.pose_dim])
+        if self.step_input:
+            steps = torch.cat([torch.zeros_like(prev[:, :1]), prev.diff(dim=1)], dim=1)
+            x = x + F.linear(steps, self.embed.weight[:, -self.pose_dim :])
+        return self.embed_act(x)
 
     def _run(self, prev: Tensor, const: Tensor, state: tuple[Tensor, Tensor]) -> tuple[Tensor, Tensor]:
         """Poses (B, T, J·3) and top-layer hidden states (B, T, H) given every frame's previous pose
         ``prev`` (B, T, J·3), in one LSTM call."""
-        emb = self.embed_act(const + F.linear(prev, self.embed.weight[:, : self.pose_dim]))
-        out, _ = self.lstm(emb, state)
+        out, _ = self.lstm(self._inputs(prev, const), state)
         poses = self._pose(self.out(out).float())  # float32 under autocast too
         return (prev + poses if self.residual else poses), out
 
@@ -315,17 +336,15 @@ class MotionGenerator(nn.Module):
         b = cond.shape[0]
         state, const = self._context(trajectory, cond)
         gt = self._readback(truth.reshape(b, self.window, self.pose_dim))
-        w_pose = self.embed.weight[:, : self.pose_dim]
         prev = torch.cat([self._first_previous(b).to(gt.dtype).unsqueeze(1), gt[:, : start - 1]], dim=1)
-        _, state = self.lstm(self.embed_act(const[:, :start] + F.linear(prev, w_pose)), state)
-        last, poses = gt[:, start - 1], []
+        _, state = self.lstm(self._inputs(prev, const[:, :start]), state)
+        before, last, poses = prev[:, -1], gt[:, start - 1], []
         for t in range(start, start + frames):
-            out, state = self.lstm(
-                self.embed_act(const[:, t : t + 1] + F.linear(last, w_pose)[:, None]), state
-            )
+            pair = torch.stack([before, last], dim=1)  # the input of frame t reads both (its step)
+            out, state = self.lstm(self._inputs(pair, const[:, t - 1 : t + 1])[:, 1:], state)
             pose = self._pose(self.out(out[:, 0]).float())
             poses.append(last + pose if self.residual else pose)
-            last = self._readback(poses[-1])
+            before, last = last, self._readback(poses[-1])
         return torch.stack(poses, dim=1)
 
     def _readback(self, poses: Tensor) -> Tensor:
@@ -346,9 +365,10 @@ class MotionGenerator(nn.Module):
 
         ``_free_run_loop`` (joints) gets the output layer, the read-back map R (identity, or
         root-centring if relative) and the next frame's pose embedding folded into one H×H product
-        (pose_t = R·(W_out·h_t + b), so W_pose·pose_t = (W_pose·R·W_out)·h_t + W_pose·R·b) and that bias;
-        ``_free_run_fk_loop`` (rotations) the transposed pose embedding, output weights and output bias.
-        Then the PReLU slope and the LSTM layers.
+        (pose_t = R·(W_out·h_t + b), so W_pose·pose_t = (W_pose·R·W_out)·h_t + W_pose·R·b) and that bias,
+        then the same for the step's columns (empty without ``step_input``); ``_free_run_fk_loop``
+        (rotations) the transposed pose embedding, output weights and output bias. Then the PReLU slope
+        and the LSTM layers.
         """
         lstm = self.lstm
         sources = [self.embed.weight, self.out.weight, self.out.bias, self.embed_act.weight]
@@ -364,7 +384,10 @@ class MotionGenerator(nn.Module):
                 head = (w_pose.t().contiguous(), self.out.weight.t().contiguous(), self.out.bias)
             else:
                 w_out = self._readback(self.out.weight.t()).t()
-                head = ((w_pose @ w_out).t().contiguous(), self._readback(self.out.bias) @ w_pose.t())
+                bias = self._readback(self.out.bias)
+                w_step = self.embed.weight[:, -self.pose_dim :] if self.step_input else w_pose[:0]
+                head = ((w_pose @ w_out).t().contiguous(), bias @ w_pose.t())
+                head += ((w_step @ w_out).t().contiguous(), bias @ w_step.t())
             layers = range(lstm.num_layers)
             param = functools.partial(getattr, lstm)
             prepared = (
@@ -394,10 +417,21 @@ class MotionGenerator(nn.Module):
                 levels = self._fk_levels()
                 args = (w_pose, w_out, b_out, slope, w_ih, w_hh, bias, self.fk_offsets, *levels)
                 return _compiled(_free_run_fk_loop)(const.float(), h0, c0, *args)
-            fused, bias_next, slope, w_ih, w_hh, bias = self._step_weights()
+            fused, bias_next, fused_step, bias_step, slope, w_ih, w_hh, bias = self._step_weights()
             first = self._first_previous(1)
             start = F.linear(first, self.embed.weight[:, : self.pose_dim])[0]
-            args = (fused, slope, w_ih, w_hh, bias, start, self.residual)
+            args = (
+                fused,
+                slope,
+                w_ih,
+                w_hh,
+                bias,
+                start,
+                self.residual,
+                fused_step,
+                bias_step,
+                self.step_input,
+            )
             tops = _compiled(_free_run_loop)(const.float(), bias_next, h0, c0, *args)
             if not self.residual:
                 return self.out(tops), tops

@@ -71,6 +71,13 @@ def test_shapes_and_batch_of_one_in_train_and_eval_mode() -> None:
     torch.testing.assert_close(traj[:, 0], torch.zeros(1, 3))
 
 
+_UPDATES: dict[str, dict[str, Any]] = {
+    "absolute": {},
+    "residual": {"pose_update": "residual"},
+    "stepped": {"pose_update": "residual", "step_input": True},
+}
+
+
 def _reference_free_run(
     model: OdmoModel, z: torch.Tensor, action: torch.Tensor, end: torch.Tensor
 ) -> torch.Tensor:
@@ -78,7 +85,8 @@ def _reference_free_run(
 
     A root-relative decoder reads back its output minus its root joint; the trajectory is the root. A
     decoder with ``velocity_input`` also reads the trajectory's step into each frame, in m/s. A residual
-    decoder adds its output to the previous pose, which at frame 0 is its start pose.
+    decoder adds its output to the previous pose, which at frame 0 is its start pose; with ``step_input``
+    it also reads the previous pose minus the one before (zero at frame 0).
     """
     gen = model.motion_gen
     n, t_len = z.shape[0], gen.window
@@ -89,11 +97,15 @@ def _reference_free_run(
     if gen.residual:
         start = gen.start.view(-1, 3)
         prev = (start - start[:1] if gen.relative else start).flatten().expand(n, -1)
+    before = prev
     for t in range(t_len):
         x = torch.cat([prev, cond, torch.full((n, 1), t / t_len)], dim=1)
         if gen.velocity_input:
             step = traj[:, t] - traj[:, t - 1] if t > 0 else torch.zeros(n, 3)
             x = torch.cat([x, step * model.config.fps], dim=1)
+        if gen.step_input:
+            x = torch.cat([x, prev - before], dim=1)
+        before = prev
         out, state = gen.lstm(gen.embed_act(gen.embed(x))[:, None], state)
         pose = (gen.out(out[:, 0]) + (prev if gen.residual else 0.0)).view(n, -1, 3)
         if gen.relative:
@@ -111,17 +123,21 @@ def _reference_free_run(
         (False, False, "absolute"),
         (True, True, "absolute"),
         (True, False, "residual"),
+        (True, True, "stepped"),
+        (False, False, "stepped"),
     ],
 )
 def test_free_running_decode_matches_a_step_by_step_nn_lstm_loop(
     relative: bool, velocity: bool, update: str
 ) -> None:
-    model = _model(root_relative_poses=relative, root_velocity_input=velocity, fps=30.0, pose_update=update)
+    """``update`` "stepped": a residual decoder with ``step_input``."""
+    model = _model(root_relative_poses=relative, root_velocity_input=velocity, fps=30.0, **_UPDATES[update])
     model.eval()
-    if update == "residual":
+    if update != "absolute":
         with torch.no_grad():
             model.motion_gen.start.normal_(generator=torch.Generator().manual_seed(0))
-    assert model.motion_gen.embed.in_features == J * 3 + 3 * 20 + 1 + (3 if velocity else 0)
+    steps = J * 3 if update == "stepped" else 0
+    assert model.motion_gen.embed.in_features == J * 3 + 3 * 20 + 1 + (3 if velocity else 0) + steps
     z, action, end = torch.randn(4, 20), torch.tensor([0, 1, 2, 1]), torch.randn(4, 3)
     with torch.no_grad():
         joints, _ = model.decode(z, action, end)
@@ -130,11 +146,11 @@ def test_free_running_decode_matches_a_step_by_step_nn_lstm_loop(
 
 
 @pytest.mark.parametrize(
-    ("velocity", "update"), [(False, "absolute"), (True, "absolute"), (False, "residual")]
+    ("velocity", "update"), [(False, "absolute"), (True, "absolute"), (False, "residual"), (False, "stepped")]
 )
 def test_free_running_decode_trains_like_the_step_by_step_loop(velocity: bool, update: str) -> None:
     """The free-running loss terms backpropagate through the fused loop: same gradients as nn.LSTM steps."""
-    model = _model(root_velocity_input=velocity, pose_update=update).train()
+    model = _model(root_velocity_input=velocity, **_UPDATES[update]).train()
     z, action, end = torch.randn(3, 20), torch.tensor([0, 1, 2]), torch.randn(3, 3)
     target = torch.randn(3, T, J, 3)
     grads = []
@@ -146,7 +162,7 @@ def test_free_running_decode_trains_like_the_step_by_step_loop(velocity: bool, u
         (decode() - target).square().mean().backward()
         grads.append({n: p.grad.clone() for n, p in model.named_parameters() if p.grad is not None})
     assert grads[0].keys() == grads[1].keys() and any(n.startswith("motion_gen.lstm") for n in grads[0])
-    assert ("motion_gen.start" in grads[0]) == (update == "residual")
+    assert ("motion_gen.start" in grads[0]) == (update != "absolute")
     for name, grad in grads[0].items():
         torch.testing.assert_close(grad, grads[1][name], atol=1e-5, rtol=1e-4, msg=name)
 
@@ -161,17 +177,18 @@ def test_fast_decode_matches_the_reference_loop_at_default_sizes(batch: int) -> 
     torch.testing.assert_close(joints, expected, atol=1e-5, rtol=1e-5)
 
 
-@pytest.mark.parametrize("residual", [False, True])
-def test_compiled_and_eager_decoder_loops_agree(residual: bool) -> None:
-    model = _model().eval()
+@pytest.mark.parametrize(("residual", "stepped"), [(False, False), (True, False), (True, True)])
+def test_compiled_and_eager_decoder_loops_agree(residual: bool, stepped: bool) -> None:
+    model = _model(pose_update="residual", step_input=True).eval() if stepped else _model().eval()
     gen = model.motion_gen
     z, action, end = torch.randn(3, 20), torch.tensor([0, 1, 2]), torch.randn(3, 3)
     with torch.no_grad():
         cond = model.condition(z, action)
         state, const = gen._context(model.traj_gen(cond, end), cond)
-        fused, bias_next, slope, w_ih, w_hh, bias = gen._step_weights()
+        fused, bias_next, fused_step, bias_step, slope, w_ih, w_hh, bias = gen._step_weights()
         start = torch.randn(const.shape[-1])
         args = (const, bias_next, state[0], state[1], fused, slope, w_ih, w_hh, bias, start, residual)
+        args += (fused_step, bias_step, stepped)
         eager = generator_module._free_run_loop(*args)
         compiled = generator_module._compiled(generator_module._free_run_loop)(*args)
     torch.testing.assert_close(compiled, eager, atol=1e-6, rtol=1e-6)
@@ -656,6 +673,11 @@ def test_a_residual_decoder_that_emits_nothing_holds_the_previous_pose() -> None
         OdmoConfig(n_actions=2, n_joints=J, pose_update="residual", pose_output="rotations")
     with pytest.raises(ConfigError, match="pose_update"):
         OdmoConfig(n_actions=2, n_joints=J, pose_update="sideways")
+    with pytest.raises(ConfigError, match="step_input"):
+        OdmoConfig(n_actions=2, n_joints=J, step_input=True)
+    saved = _model(pose_update="residual", step_input=True).config.to_dict()
+    assert OdmoConfig.from_dict(saved).step_input
+    assert not OdmoConfig.from_dict({k: v for k, v in saved.items() if k != "step_input"}).step_input
 
 
 def test_the_start_term_compares_the_first_frames_about_the_root() -> None:
@@ -862,12 +884,12 @@ def test_the_stance_term_is_the_speed_of_the_lowest_foot() -> None:
     assert OdmoConfig.from_dict({k: v for k, v in cfg.to_dict().items() if k != "w_stance"}).w_stance == 0.0
 
 
-@pytest.mark.parametrize("update", ["absolute", "residual"])
+@pytest.mark.parametrize("update", ["absolute", "residual", "stepped"])
 def test_a_rollout_is_the_decode_fed_real_poses_up_to_its_start_then_its_own(update: str) -> None:
     """Frames 4…8 of a rollout from frame 4 are those of a teacher-forced decode whose previous poses
     after frame 3 are its own, fed back one at a time (independent of the rollout's code); its first
     frame is the teacher-forced one; a rollout cannot start at frame 0 or run past the window."""
-    model = _model(pose_update=update).eval()
+    model = _model(**_UPDATES[update]).eval()
     z, action, end = torch.randn(2, 20), torch.tensor([0, 2]), torch.randn(2, 3)
     truth = torch.randn(2, T, J, 3)
     with torch.no_grad():
