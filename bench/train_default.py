@@ -109,6 +109,12 @@ def parse_args() -> argparse.Namespace:
         help="frames per span over which the w_speed term compares mean speeds (0: the whole window)",
     )
     p.add_argument(
+        "--upper-speed-span",
+        type=int,
+        default=20,
+        help="frames per span over which the w_upper_speed term compares the upper body's speeds",
+    )
+    p.add_argument(
         "--spectrum-span",
         type=int,
         default=0,
@@ -228,6 +234,7 @@ def main() -> int:
         free_shift=args.free_shift,
         start_frames=args.start_frames,
         rollout_frames=args.rollout_frames,
+        upper_speed_span=args.upper_speed_span,
         speed_span=args.speed_span,
         spectrum_span=args.spectrum_span,
         spectrum_legs=not args.spectrum_no_legs,
@@ -450,6 +457,12 @@ def model_switches(config: OdmoConfig) -> str:
         what = "log " if config.speed_error == "log" else ""
         per = f"{config.speed_span}-frame span" if config.speed_span else "window"
         parts.append(f"`w_speed = {config.w_speed:g}` (a loss on that decode's per-{per} {what}joint speeds)")
+    if config.w_upper_speed > 0:
+        what = "log " if config.speed_error == "log" else ""
+        parts.append(
+            f"`w_upper_speed = {config.w_upper_speed:g}` (a loss on that decode's per-"
+            f"{config.upper_speed_span}-frame-span {what}speeds of the joints outside the legs)"
+        )
     if config.w_spectrum > 0:
         legs = "" if config.spectrum_legs else ", legs left out"
         per = f" per {config.spectrum_span}-frame span" if config.spectrum_span else ""

@@ -42,6 +42,7 @@ _BEFORE_SWITCHES = {
     "clock_hz": (),
     "w_rollout": 0.0,
     "step_input": False,
+    "w_upper_speed": 0.0,
 }
 SCHEDULED_SAMPLING = ("one_step", "free_run")
 #: The paper's model in one setting, ``OdmoConfig(n_actions, n_joints, **PAPER)``: every project change off.
@@ -91,7 +92,10 @@ class OdmoConfig(ModelConfig):
     default, measured in the README ("Where the model differs from the paper"). The skate and speed
     terms are in m²/s²; ``speed_error`` "log" compares log speeds instead (relative errors: a slow
     wave's hand weighs as much as a run's feet); ``speed_span`` > 0 compares them over each run of that
-    many frames instead of the whole window (a burst that then stops no longer passes). ``w_spectrum``
+    many frames instead of the whole window (a burst that then stops no longer passes);
+    ``w_upper_speed`` weights the same error per run of ``upper_speed_span`` frames on the joints outside
+    the legs only (``upper_joints``: a wave that stops after a burst fails it, while the legs keep the
+    window's measure, whose spans turned walks into runs, README). ``w_spectrum``
     weights the squared error of that decode's log amplitude spectra per joint (how much it moves at
     each rhythm, phase-free: a slow raise and a quick wave of one mean speed differ there), over each
     run of ``spectrum_span`` frames if > 0.
@@ -182,6 +186,8 @@ class OdmoConfig(ModelConfig):
     w_rollout: float = 0.0
     rollout_frames: int = 15
     w_speed: float = 0.0
+    w_upper_speed: float = 0.0
+    upper_speed_span: int = 20
     speed_error: str = "absolute"
     speed_span: int = 0
     w_spectrum: float = 0.0
@@ -206,12 +212,12 @@ class OdmoConfig(ModelConfig):
 
     POSITIVE = ("n_actions", "n_joints", "window", "fps", "latent_dim", "enc_hidden", "enc_fc", "traj_hidden")
     POSITIVE += ("motion_hidden", "prior_sigma2", "lr", "batch_size", "epoch_size", "free_span")
-    POSITIVE += ("start_frames", "rollout_frames")
+    POSITIVE += ("start_frames", "rollout_frames", "upper_speed_span")
     NON_NEGATIVE = ("w_recon", "w_traj", "w_consistency", "w_contrastive", "w_prior", "traj_y_weight")
     NON_NEGATIVE += ("w_raw", "w_contact", "w_velocity", "contrastive_pull", "epochs", "tf_decay_epochs")
     NON_NEGATIVE += ("w_skate", "w_free", "w_speed", "w_spectrum", "w_free_skate", "w_foot_height")
     NON_NEGATIVE += ("w_heading", "w_twist", "w_coordination", "speed_span", "spectrum_span", "free_shift")
-    NON_NEGATIVE += ("w_start", "w_stance", "w_rollout")
+    NON_NEGATIVE += ("w_start", "w_stance", "w_rollout", "w_upper_speed")
     RATES = ("tf_start", "tf_end")
     CHOICES: ClassVar[dict[str, tuple[str, ...]]] = {
         "train_precision": TRAIN_PRECISIONS,

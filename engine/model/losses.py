@@ -34,6 +34,7 @@ LOSS_TERMS = (
     "start",
     "stance",
     "rollout",
+    "upper_speed",
 )
 STANCE_TAU = 0.01  # metres: how much lower a foot joint must be than another to take the weight
 
@@ -147,16 +148,25 @@ LOG_SPEED_FLOOR = 0.05
 
 
 def speed_loss(
-    pred: Tensor, target: Tensor, mask: Tensor, fps: float, root: int, log: bool = False, span: int = 0
+    pred: Tensor,
+    target: Tensor,
+    mask: Tensor,
+    fps: float,
+    root: int,
+    log: bool = False,
+    span: int = 0,
+    on: Sequence[int] | None = None,
 ) -> Tensor:
     """Squared error of the mean joint speeds of ``pred`` against ``target`` (B, T, J, 3) in each run of
     ``span`` frame steps (0: the whole window; spans without real frames left out): the motion an L2
     loss on positions lets shrink towards a mean pose. Spans shorter than the window keep a decode from
     meeting the window's mean speed with a burst that then stops. In m²/s², or with ``log`` of
     log(speed + LOG_SPEED_FLOOR), so that a hand waving at a third of its speed costs as much as a foot
-    running at a third of its own."""
+    running at a third of its own. ``on``: the joints compared (None: all)."""
     pred_speed = mean_speeds(pred, mask, fps, root, span)
     target_speed = mean_speeds(target, mask, fps, root, span)
+    if on is not None:
+        pred_speed, target_speed = pred_speed[..., list(on)], target_speed[..., list(on)]
     if log:
         pred_speed = torch.log(pred_speed + LOG_SPEED_FLOOR)
         target_speed = torch.log(target_speed + LOG_SPEED_FLOOR)
@@ -196,6 +206,11 @@ def spectrum_joints(config: OdmoConfig, parents: Sequence[int], root: int) -> li
     return sorted(every if config.spectrum_legs else every - leg_joints(config, parents, root))
 
 
+def upper_joints(config: OdmoConfig, parents: Sequence[int], root: int) -> list[int]:
+    """Joints the upper-body speed term sees: all but the root and ``leg_joints``."""
+    return sorted(set(range(len(parents))) - leg_joints(config, parents, root) - {root})
+
+
 def coordination_joints(config: OdmoConfig, parents: Sequence[int], root: int) -> list[int]:
     """Joints the coordination term sees: all, or with ``coordination_on`` "legs" only ``leg_joints``."""
     if config.coordination_on == "legs":
@@ -207,20 +222,25 @@ def coordination_joints(config: OdmoConfig, parents: Sequence[int], root: int) -
 class LossJoints:
     """Joints the loss terms read, found once from the skeleton: the root, the joints of the spectrum
     term, the two hips of the heading term and the two shoulders of the twist term (None: a rig without
-    two legs, or two arms), the joints of the coordination term."""
+    two legs, or two arms), the joints of the coordination term and of the upper-body speed term."""
 
     root: int
     spectrum_on: tuple[int, ...]
     hips: tuple[int, int] | None
     shoulders: tuple[int, int] | None
     coordination_on: tuple[int, ...]
+    upper_on: tuple[int, ...]
 
     @classmethod
     def of(cls, config: OdmoConfig, skeleton: Skeleton) -> LossJoints:
         """The joints of ``config``'s terms on ``skeleton``."""
         spectrum_on = tuple(spectrum_joints(config, skeleton.parents, skeleton.root))
         coordination_on = tuple(coordination_joints(config, skeleton.parents, skeleton.root))
-        return cls(skeleton.root, spectrum_on, hip_pair(skeleton), shoulder_pair(skeleton), coordination_on)
+        upper_on = tuple(
+            upper_joints(config, skeleton.parents, skeleton.root) if config.w_upper_speed else ()
+        )
+        hips, shoulders = hip_pair(skeleton), shoulder_pair(skeleton)
+        return cls(skeleton.root, spectrum_on, hips, shoulders, coordination_on, upper_on)
 
 
 def spectrum_loss(
@@ -420,6 +440,7 @@ def odmo_losses(
     shoulders: tuple[int, int] | None = None,
     coordination_on: Sequence[int] | None = None,
     rollout: tuple[int, Tensor] | None = None,
+    upper_on: Sequence[int] | None = None,
 ) -> dict[str, Tensor]:
     """Every loss term and the weighted ``total``.
 
@@ -441,6 +462,7 @@ def odmo_losses(
     coordination_on : the joints the coordination term compares (``coordination_joints``; None: all).
     rollout : the first frame and the joints (2B, K, J, 3) of a rollout (``OdmoModel.rollout``; None: no
         rollout term).
+    upper_on : the joints the upper-body speed term compares (``upper_joints``; None: all).
     """
     axis = torch.tensor([1.0, config.traj_y_weight, 1.0], device=joints.device)
     zero = joints.new_zeros(())
@@ -466,6 +488,7 @@ def odmo_losses(
         "start": zero,
         "stance": zero,
         "rollout": zero,
+        "upper_speed": zero,
     }
     twist_on = free_joints is not None and hips is not None and shoulders is not None
     if free_joints is not None:
@@ -477,6 +500,9 @@ def odmo_losses(
         terms["start"] = start_mse(free_joints, joints, mask, root, config.start_frames)
         log = config.speed_error == "log"
         terms["speed"] = speed_loss(free_joints, joints, mask, config.fps, root, log, config.speed_span)
+        terms["upper_speed"] = speed_loss(
+            free_joints, joints, mask, config.fps, root, log, config.upper_speed_span, upper_on
+        )
         terms["spectrum"] = spectrum_loss(free_joints, joints, mask, root, spectrum_on, config.spectrum_span)
         if hips is not None:
             terms["heading"] = heading_loss(free_joints, joints, mask, hips, config.fps)
@@ -523,6 +549,7 @@ def odmo_losses(
         "start": config.w_start if free_joints is not None else 0.0,
         "stance": config.w_stance if free_feet_on else 0.0,
         "rollout": config.w_rollout if rollout is not None else 0.0,
+        "upper_speed": config.w_upper_speed if free_joints is not None else 0.0,
     }
     terms["total"] = sum(weights[k] * terms[k] for k in LOSS_TERMS if weights[k] > 0)
     return terms

@@ -116,6 +116,7 @@ def _forward(
         "w_coordination",
         "w_start",
         "w_stance",
+        "w_upper_speed",
     )
     if any(getattr(config, name) > 0 for name in free_terms):
         free = out.joints if truth is None else model.decode_full(z, data.actions, end).joints
@@ -144,6 +145,7 @@ def _forward(
         shoulders=roles.shoulders,
         coordination_on=roles.coordination_on,
         rollout=rollout,
+        upper_on=roles.upper_on,
     )
 
 

@@ -452,6 +452,40 @@ def test_log_speed_loss_weighs_relative_errors() -> None:
     torch.testing.assert_close(ratio, torch.tensor(0.04, dtype=torch.float64))  # (0.1 / 0.5)²
 
 
+def test_the_upper_speed_term_compares_spans_of_the_chosen_joints() -> None:
+    """A swing that stops halfway has the window's mean speed of a steady swing at half its speed but
+    not its spans'; over its 20-frame spans the error is that of each span's log speeds, on the joints
+    it is told to compare only; through ``odmo_losses`` it is weighted by ``w_upper_speed``."""
+    mask = torch.ones(1, 60, dtype=torch.bool)
+    steady = _swinging(1.0, 0.1)
+    burst = _swinging(1.0, 0.2)
+    burst[0, 30:, 1] = burst[0, 30:, 0] + (burst[0, 29, 1] - burst[0, 29, 0])
+    spans_real = mean_speeds(steady, mask, 20.0, root=0, span=20)[0, :, 1]
+    spans_burst = mean_speeds(burst, mask, 20.0, root=0, span=20)[0, :, 1]
+    floor = LOG_SPEED_FLOOR
+    expected = float(((torch.log(spans_burst + floor) - torch.log(spans_real + floor)) ** 2).mean())
+    got = speed_loss(burst, steady, mask, 20.0, root=0, log=True, span=20, on=[1])
+    assert float(got) == pytest.approx(expected, rel=1e-9)
+    assert float(got) > 10 * float(speed_loss(burst, steady, mask, 20.0, root=0, log=True, on=[1]))
+    assert float(speed_loss(burst, steady, mask, 20.0, root=0, log=True, span=20, on=[0])) == 0.0
+    kw = {"mu": torch.zeros(2, 20), "logvar": torch.zeros(2, 20), "same": torch.tensor([True]), "root": 0}
+    kw |= {"joints": steady.float().repeat(2, 1, 1, 1), "trajectory": steady[:, :, 0].float().repeat(2, 1, 1)}
+    kw |= {"mask": mask.repeat(2, 1), "pred_joints": steady.float().repeat(2, 1, 1, 1)}
+    kw |= {
+        "pred_trajectory": steady[:, :, 0].float().repeat(2, 1, 1),
+        "free_joints": burst.float().repeat(2, 1, 1, 1),
+    }
+    cfg = OdmoConfig(n_actions=2, n_joints=2, w_upper_speed=2.0, speed_error="log", upper_speed_span=20)
+    terms = odmo_losses(cfg, **kw, upper_on=(1,))
+    assert float(terms["upper_speed"]) == pytest.approx(expected, rel=1e-4)
+    without = odmo_losses(dataclasses.replace(cfg, w_upper_speed=0.0), **kw, upper_on=(1,))
+    assert float(terms["total"] - without["total"]) == pytest.approx(2 * expected, rel=1e-3)
+    assert (
+        OdmoConfig.from_dict({k: v for k, v in cfg.to_dict().items() if k != "w_upper_speed"}).w_upper_speed
+        == 0
+    )
+
+
 def _swinging(hz: float, amplitude: float, frames: int = 60, fps: float = 20.0) -> torch.Tensor:
     """(1, frames, 2, 3): a root walking along x at 1 m/s and a hand swinging sideways about it."""
     t = torch.arange(frames, dtype=torch.float64) / fps
@@ -991,9 +1025,12 @@ def test_loss_joints_find_the_hips_above_the_feet_and_the_shoulders() -> None:
     skel = Skeleton(names, parents, offsets)
     cfg = OdmoConfig(n_actions=3, n_joints=13, foot_joints=(8, 9, 12), foot_heights=(0.1, 0.05, 0.1))
     every = tuple(range(13))
-    assert LossJoints.of(cfg, skel) == LossJoints(0, every, (6, 10), (2, 4), every)
+    assert LossJoints.of(cfg, skel) == LossJoints(0, every, (6, 10), (2, 4), every, ())
+    upper = OdmoConfig(**(cfg.to_dict() | {"w_upper_speed": 1.0}))
+    assert LossJoints.of(upper, skel).upper_on == (1, 2, 3, 4, 5)  # neither the root nor a leg
     one_leg = Skeleton(names[:10], parents[:10], offsets[:10])
-    assert LossJoints.of(cfg, one_leg) == LossJoints(0, tuple(range(10)), None, None, tuple(range(10)))
+    ten = tuple(range(10))
+    assert LossJoints.of(cfg, one_leg) == LossJoints(0, ten, None, None, ten, ())
     legs = OdmoConfig(**(cfg.to_dict() | {"coordination_on": "legs"}))
     assert LossJoints.of(legs, skel).coordination_on == (6, 7, 8, 9, 10, 11, 12)
 
