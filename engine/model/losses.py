@@ -500,9 +500,10 @@ def odmo_losses(
         terms["start"] = start_mse(free_joints, joints, mask, root, config.start_frames)
         log = config.speed_error == "log"
         terms["speed"] = speed_loss(free_joints, joints, mask, config.fps, root, log, config.speed_span)
-        terms["upper_speed"] = speed_loss(
-            free_joints, joints, mask, config.fps, root, log, config.upper_speed_span, upper_on
-        )
+        if config.w_upper_speed > 0:  # LossJoints leaves upper_on empty while the term is off
+            terms["upper_speed"] = speed_loss(
+                free_joints, joints, mask, config.fps, root, log, config.upper_speed_span, upper_on
+            )
         terms["spectrum"] = spectrum_loss(free_joints, joints, mask, root, spectrum_on, config.spectrum_span)
         if hips is not None:
             terms["heading"] = heading_loss(free_joints, joints, mask, hips, config.fps)

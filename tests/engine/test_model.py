@@ -479,6 +479,10 @@ def test_the_upper_speed_term_compares_spans_of_the_chosen_joints() -> None:
     terms = odmo_losses(cfg, **kw, upper_on=(1,))
     assert float(terms["upper_speed"]) == pytest.approx(expected, rel=1e-4)
     without = odmo_losses(dataclasses.replace(cfg, w_upper_speed=0.0), **kw, upper_on=(1,))
+    off = odmo_losses(
+        dataclasses.replace(cfg, w_upper_speed=0.0), **kw, upper_on=()
+    )  # as LossJoints leaves it
+    assert float(off["upper_speed"]) == 0.0
     assert float(terms["total"] - without["total"]) == pytest.approx(2 * expected, rel=1e-3)
     assert (
         OdmoConfig.from_dict({k: v for k, v in cfg.to_dict().items() if k != "w_upper_speed"}).w_upper_speed
