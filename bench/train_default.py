@@ -463,6 +463,11 @@ def model_switches(config: OdmoConfig) -> str:
             f"`w_upper_speed = {config.w_upper_speed:g}` (a loss on that decode's per-"
             f"{config.upper_speed_span}-frame-span {what}speeds of the joints outside the legs)"
         )
+    if config.w_foot_twist > 0:
+        parts.append(
+            f"`w_foot_twist = {config.w_foot_twist:g}` (a loss on the turn of that decode's feet against its "
+            "hips' axis)"
+        )
     if config.w_spectrum > 0:
         legs = "" if config.spectrum_legs else ", legs left out"
         per = f" per {config.spectrum_span}-frame span" if config.spectrum_span else ""

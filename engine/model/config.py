@@ -43,6 +43,7 @@ _BEFORE_SWITCHES = {
     "w_rollout": 0.0,
     "step_input": False,
     "w_upper_speed": 0.0,
+    "w_foot_twist": 0.0,
 }
 SCHEDULED_SAMPLING = ("one_step", "free_run")
 #: The paper's model in one setting, ``OdmoConfig(n_actions, n_joints, **PAPER)``: every project change off.
@@ -111,6 +112,9 @@ class OdmoConfig(ModelConfig):
     axis turned against the hips'), ``w_coordination`` the relative squared error of the mean outer
     product of its joints' velocities (how each joint moves with every other: feet that alternate), of
     every joint or with ``coordination_on`` "legs" only the chains from the root to the foot joints.
+    ``w_foot_twist`` weights the twist term's error for each foot (ankle to the joint below it) turned
+    against the hips' axis (a foot a free run turns heel-first stays so: nothing else ties the toe's
+    side of the ankle to the body).
     ``spectrum_legs`` False leaves the legs out of the spectrum term. ``root_velocity_input`` feeds the
     pose decoder each frame's root velocity from the generated trajectory (the paper's decoder sees the
     trajectory only through its initial state, so it cannot tell how far the root moves at each frame
@@ -199,6 +203,7 @@ class OdmoConfig(ModelConfig):
     w_stance: float = 0.0
     w_heading: float = 0.0
     w_twist: float = 0.0
+    w_foot_twist: float = 0.0
     w_coordination: float = 0.0
     coordination_on: str = "all"
     root_velocity_input: bool = False
@@ -217,7 +222,7 @@ class OdmoConfig(ModelConfig):
     NON_NEGATIVE += ("w_raw", "w_contact", "w_velocity", "contrastive_pull", "epochs", "tf_decay_epochs")
     NON_NEGATIVE += ("w_skate", "w_free", "w_speed", "w_spectrum", "w_free_skate", "w_foot_height")
     NON_NEGATIVE += ("w_heading", "w_twist", "w_coordination", "speed_span", "spectrum_span", "free_shift")
-    NON_NEGATIVE += ("w_start", "w_stance", "w_rollout", "w_upper_speed")
+    NON_NEGATIVE += ("w_start", "w_stance", "w_rollout", "w_upper_speed", "w_foot_twist")
     RATES = ("tf_start", "tf_end")
     CHOICES: ClassVar[dict[str, tuple[str, ...]]] = {
         "train_precision": TRAIN_PRECISIONS,

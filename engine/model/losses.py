@@ -10,7 +10,7 @@ from torch import Tensor
 
 from engine.metrics.physics import HEADING_SPAN, MOVING_SPEED
 from engine.model.config import OdmoConfig
-from engine.motion.contact import HEIGHT_TOL, hip_pair, shoulder_pair
+from engine.motion.contact import HEIGHT_TOL, hip_pair, leg_chains, shoulder_pair
 from engine.motion.skeleton import Skeleton
 
 LOSS_TERMS = (
@@ -35,6 +35,7 @@ LOSS_TERMS = (
     "stance",
     "rollout",
     "upper_speed",
+    "foot_twist",
 )
 STANCE_TAU = 0.01  # metres: how much lower a foot joint must be than another to take the weight
 
@@ -230,6 +231,7 @@ class LossJoints:
     shoulders: tuple[int, int] | None
     coordination_on: tuple[int, ...]
     upper_on: tuple[int, ...]
+    feet: tuple[tuple[int, int], ...] = ()
 
     @classmethod
     def of(cls, config: OdmoConfig, skeleton: Skeleton) -> LossJoints:
@@ -240,7 +242,8 @@ class LossJoints:
             upper_joints(config, skeleton.parents, skeleton.root) if config.w_upper_speed else ()
         )
         hips, shoulders = hip_pair(skeleton), shoulder_pair(skeleton)
-        return cls(skeleton.root, spectrum_on, hips, shoulders, coordination_on, upper_on)
+        feet = tuple((below[0], ankle) for _, _, ankle, below in leg_chains(skeleton) if below)
+        return cls(skeleton.root, spectrum_on, hips, shoulders, coordination_on, upper_on, feet)
 
 
 def spectrum_loss(
@@ -396,7 +399,8 @@ def twist_loss(
 ) -> Tensor:
     """Squared distance between the unit (cos, sin) of the torso twist (``engine.metrics.physics``) of
     ``pred`` and of ``target`` (B, T, J, 3) per real frame: 0 for the data's twist, 2 − 2 cos Δ for a
-    twist Δ off it."""
+    twist Δ off it. Any joint pair in place of the shoulders gives its turn against the hips (a foot's:
+    (toe, ankle))."""
     err = (_twists(pred, hips, shoulders) - _twists(target, hips, shoulders).detach()).square().sum(-1)
     m = mask.to(err.dtype)
     return (err * m).sum() / m.sum().clamp(min=1.0)
@@ -441,6 +445,7 @@ def odmo_losses(
     coordination_on: Sequence[int] | None = None,
     rollout: tuple[int, Tensor] | None = None,
     upper_on: Sequence[int] | None = None,
+    feet: Sequence[tuple[int, int]] = (),
 ) -> dict[str, Tensor]:
     """Every loss term and the weighted ``total``.
 
@@ -463,6 +468,7 @@ def odmo_losses(
     rollout : the first frame and the joints (2B, K, J, 3) of a rollout (``OdmoModel.rollout``; None: no
         rollout term).
     upper_on : the joints the upper-body speed term compares (``upper_joints``; None: all).
+    feet : the (toe, ankle) pairs of the foot-twist term (``LossJoints.feet``; empty: no such term).
     """
     axis = torch.tensor([1.0, config.traj_y_weight, 1.0], device=joints.device)
     zero = joints.new_zeros(())
@@ -489,8 +495,10 @@ def odmo_losses(
         "stance": zero,
         "rollout": zero,
         "upper_speed": zero,
+        "foot_twist": zero,
     }
     twist_on = free_joints is not None and hips is not None and shoulders is not None
+    foot_twist_on = free_joints is not None and hips is not None and len(feet) > 0
     if free_joints is not None:
         if config.free_shift > 0:  # root-relative: the shifted target's root is the trajectory loss's
             local, truth = about_root(free_joints, root), about_root(joints, root)
@@ -509,6 +517,9 @@ def odmo_losses(
             terms["heading"] = heading_loss(free_joints, joints, mask, hips, config.fps)
         if twist_on:
             terms["twist"] = twist_loss(free_joints, joints, mask, hips, shoulders)
+        if foot_twist_on and config.w_foot_twist > 0:
+            twists = [twist_loss(free_joints, joints, mask, hips, pair) for pair in feet]
+            terms["foot_twist"] = torch.stack(twists).mean()
         terms["coordination"] = coordination_loss(
             free_joints, joints, mask, root, config.fps, coordination_on
         )
@@ -551,6 +562,7 @@ def odmo_losses(
         "stance": config.w_stance if free_feet_on else 0.0,
         "rollout": config.w_rollout if rollout is not None else 0.0,
         "upper_speed": config.w_upper_speed if free_joints is not None else 0.0,
+        "foot_twist": config.w_foot_twist if foot_twist_on else 0.0,
     }
     terms["total"] = sum(weights[k] * terms[k] for k in LOSS_TERMS if weights[k] > 0)
     return terms

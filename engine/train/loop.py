@@ -146,6 +146,7 @@ def _forward(
         coordination_on=roles.coordination_on,
         rollout=rollout,
         upper_on=roles.upper_on,
+        feet=roles.feet,
     )
 
 

@@ -1029,12 +1029,13 @@ def test_loss_joints_find_the_hips_above_the_feet_and_the_shoulders() -> None:
     skel = Skeleton(names, parents, offsets)
     cfg = OdmoConfig(n_actions=3, n_joints=13, foot_joints=(8, 9, 12), foot_heights=(0.1, 0.05, 0.1))
     every = tuple(range(13))
-    assert LossJoints.of(cfg, skel) == LossJoints(0, every, (6, 10), (2, 4), every, ())
+    feet = ((9, 8),)  # the toe below the left ankle; the right foot has none
+    assert LossJoints.of(cfg, skel) == LossJoints(0, every, (6, 10), (2, 4), every, (), feet)
     upper = OdmoConfig(**(cfg.to_dict() | {"w_upper_speed": 1.0}))
     assert LossJoints.of(upper, skel).upper_on == (1, 2, 3, 4, 5)  # neither the root nor a leg
     one_leg = Skeleton(names[:10], parents[:10], offsets[:10])
     ten = tuple(range(10))
-    assert LossJoints.of(cfg, one_leg) == LossJoints(0, ten, None, None, ten, ())
+    assert LossJoints.of(cfg, one_leg) == LossJoints(0, ten, None, None, ten, (), feet)
     legs = OdmoConfig(**(cfg.to_dict() | {"coordination_on": "legs"}))
     assert LossJoints.of(legs, skel).coordination_on == (6, 7, 8, 9, 10, 11, 12)
 
@@ -1073,6 +1074,20 @@ def test_the_twist_term_enters_the_total_with_its_weight_and_needs_shoulders() -
     torch.testing.assert_close(terms["twist"], torch.tensor(1.0))  # 2 − 2 cos 60°
     torch.testing.assert_close(terms["total"], terms["velocity"] * cfg.w_velocity + 2.0 * terms["twist"])
     assert float(odmo_losses(cfg, hips=(1, 2), **kw)["twist"]) == 0.0  # no shoulders: no twist term
+
+
+def test_the_foot_twist_term_averages_each_foots_twist_against_the_hips() -> None:
+    """A pair turned heel-first (180°) against the data costs 2 − 2 cos 180° = 4 per frame; the hips'
+    own pair never turns against itself (0): their mean is 2, weighted into the total only when on."""
+    cfg = OdmoConfig(n_actions=2, n_joints=5, w_foot_twist=0.5, w_contrastive=0.0, w_prior=0.0, w_free=0.0)
+    kw = _pair_kwargs(_twisted(10.0), _twisted(190.0))
+    terms = odmo_losses(cfg, hips=(1, 2), feet=((3, 4), (1, 2)), **kw)
+    torch.testing.assert_close(terms["foot_twist"], torch.tensor(2.0))
+    torch.testing.assert_close(terms["total"], terms["velocity"] * cfg.w_velocity + 0.5 * terms["foot_twist"])
+    assert float(odmo_losses(cfg, feet=((3, 4),), **kw)["foot_twist"]) == 0.0  # no hips: no term
+    off = odmo_losses(dataclasses.replace(cfg, w_foot_twist=0.0), hips=(1, 2), feet=((3, 4),), **kw)
+    assert float(off["foot_twist"]) == 0.0
+    assert float(off["total"]) == pytest.approx(float(off["velocity"]) * cfg.w_velocity)
 
 
 def _stepping(alternate: bool, frames: int = 61, skip: int = 0) -> torch.Tensor:
