@@ -55,7 +55,7 @@ from engine.train.loop import train
 #: differs from the paper").
 BUNDLED_WEIGHTS = ("w_skate=0.01", "w_free=1", "w_speed=0.1", "w_velocity=0.1", "w_spectrum=0.5")
 BUNDLED_WEIGHTS += ("w_free_skate=0.05", "w_foot_height=10", "w_heading=1", "w_twist=1", "w_start=10")
-BUNDLED_WEIGHTS += ("w_stance=1",)
+BUNDLED_WEIGHTS += ("w_stance=1", "w_rollout=10")
 DEFAULT_OUT = Path(__file__).resolve().parents[1] / "resources" / "models" / "bandai2-odmo"
 
 
