@@ -223,7 +223,8 @@ def coordination_joints(config: OdmoConfig, parents: Sequence[int], root: int) -
 class LossJoints:
     """Joints the loss terms read, found once from the skeleton: the root, the joints of the spectrum
     term, the two hips of the heading term and the two shoulders of the twist term (None: a rig without
-    two legs, or two arms), the joints of the coordination term and of the upper-body speed term."""
+    two legs, or two arms), the joints of the coordination term and of the upper-body speed term, and
+    the (toe, ankle) pairs of the foot-twist term (the first foot joint below each ankle)."""
 
     root: int
     spectrum_on: tuple[int, ...]
