@@ -37,7 +37,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from engine.motion.contact import ankle_pair, foot_joints, hand_joints, hip_pair, leg_chains, shoulder_pair
+from engine.motion.contact import ankle_pair, foot_joints, foot_lines, hand_joints, hip_pair, shoulder_pair
 from engine.motion.skeleton import Skeleton
 
 PLANTED_TOL = 0.03
@@ -233,7 +233,7 @@ def physics_metrics(clips: Sequence[np.ndarray], skeleton: Skeleton, fps: float)
         out["torso_twist_deg"] = torso_twist(clips, hips, shoulders)
     if ankles is not None and hips is not None:
         out["foot_sync"] = foot_sync(clips, ankles, int(skeleton.parents[hips[0]]))
-    toes = [(ankle, below[0]) for _, _, ankle, below in leg_chains(skeleton) if below]
+    toes = foot_lines(skeleton)
     backward = feet_backward(clips, toes, int(skeleton.parents[hips[0]]), fps) if toes and hips else np.nan
     if np.isfinite(backward):  # left out where nothing travels with a foot down
         out["feet_backward"] = backward

@@ -10,7 +10,7 @@ from torch import Tensor
 
 from engine.metrics.physics import HEADING_SPAN, MOVING_SPEED
 from engine.model.config import OdmoConfig
-from engine.motion.contact import HEIGHT_TOL, hip_pair, leg_chains, shoulder_pair
+from engine.motion.contact import HEIGHT_TOL, foot_lines, hip_pair, shoulder_pair
 from engine.motion.skeleton import Skeleton
 
 LOSS_TERMS = (
@@ -243,7 +243,7 @@ class LossJoints:
             upper_joints(config, skeleton.parents, skeleton.root) if config.w_upper_speed else ()
         )
         hips, shoulders = hip_pair(skeleton), shoulder_pair(skeleton)
-        feet = tuple((below[0], ankle) for _, _, ankle, below in leg_chains(skeleton) if below)
+        feet = tuple((toe, ankle) for ankle, toe in foot_lines(skeleton))
         return cls(skeleton.root, spectrum_on, hips, shoulders, coordination_on, upper_on, feet)
 
 

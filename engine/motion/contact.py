@@ -63,6 +63,12 @@ def ankle_pair(skeleton: Skeleton) -> tuple[int, int] | None:
     return (legs[0][2], legs[1][2]) if len(legs) == 2 else None
 
 
+def foot_lines(skeleton: Skeleton) -> list[tuple[int, int]]:
+    """Per leg with a joint below its ankle, (ankle, the first foot joint below it): the line a foot
+    points along."""
+    return [(ankle, below[0]) for _, _, ankle, below in leg_chains(skeleton) if below]
+
+
 def shoulder_pair(skeleton: Skeleton) -> tuple[int, int] | None:
     """The tops of the two arms (from each hand up to the joint below the first that branches, the
     chest), the first on the side of ``hip_pair``'s first in the rest pose; None without two hands and

@@ -11,6 +11,7 @@ from engine.motion.contact import (
     ankle_pair,
     contact_labels,
     foot_joints,
+    foot_lines,
     hand_joints,
     hip_pair,
     leg_chains,
@@ -45,6 +46,7 @@ def test_joint_lookups_by_name() -> None:
     assert foot_joints(skel) == [5, 6]
     assert hand_joints(skel) == [2]
     assert leg_chains(skel) == [(3, 4, 5, [6])]
+    assert foot_lines(skel) == [(5, 6)]  # the ankle and the toe below it
 
 
 def test_a_stretched_bone_has_the_cv_of_its_lengths() -> None:
@@ -235,6 +237,7 @@ def test_shoulders_are_the_tops_of_the_arms_on_the_hips_sides() -> None:
     skel = Skeleton(names, parents, offsets)
     assert hip_pair(skel) == (9, 12)
     assert ankle_pair(skel) == (11, 14)
+    assert foot_lines(skel) == []  # no joint below either ankle
     assert shoulder_pair(skel) == (7, 4)  # the left arm's top first, as the left hip
     one_arm = Skeleton(names[:7] + names[9:], np.array([-1, 0, 1, 2, 2, 4, 5, 0, 7, 8, 0, 10, 11]),
                        np.delete(offsets, [7, 8], axis=0))  # fmt: skip
