@@ -179,8 +179,7 @@ def plant_feet(
     those frames (a foot lifting off or coming down is not held to the floor). Any frame whose foot
     joints dip under their resting heights is lifted to them. The foot moves rigidly and the knee is
     re-solved by two-bone IK (hip fixed, bone lengths kept; a target out of reach is approached along the
-    hip-to-target line), so the pose
-    stays one a BVH holds exactly.
+    hip-to-target line), so the pose stays one a BVH holds exactly.
     """
     out = np.array(joints, dtype=np.float64, copy=True)
     feet, heights = list(feet), np.asarray(heights, dtype=np.float64)
