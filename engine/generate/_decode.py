@@ -93,13 +93,11 @@ def ready_model(loaded: LoadedModel) -> OdmoModel:
 
 def plant(loaded: LoadedModel, joints: np.ndarray, contact: np.ndarray | None) -> np.ndarray:
     """Display-height joints (B, T, J, 3) with the foot clean-up applied where the model predicts contact
-    or the decoded foot is on the floor and slow (unchanged for models without a contact head)."""
+    (unchanged for models without a contact head)."""
     config = loaded.config
     if contact is None or not (config.foot_contact and config.foot_joints and config.foot_heights):
         return joints
-    return plant_feet(
-        joints, contact > 0.0, loaded.skeleton, config.foot_joints, config.foot_heights, fps=config.fps
-    )
+    return plant_feet(joints, contact > 0.0, loaded.skeleton, config.foot_joints, config.foot_heights)
 
 
 def decode_tensors(

@@ -78,15 +78,14 @@ def save_modi(
 
 
 def display_joints(loaded: LoadedModi, joints: np.ndarray, contacts: np.ndarray) -> np.ndarray:
-    """Canonical joints (N, T, J, 3) at display height, feet pinned where the model predicts contact (or
-    they are on the floor and slow) and lifted out of the floor (``plant_feet``; unchanged without the
-    config's foot heights)."""
+    """Canonical joints (N, T, J, 3) at display height, feet pinned where the model predicts contact and
+    lifted out of the floor (``plant_feet``; unchanged without the config's foot heights)."""
     lifted = joints + np.array([0.0, loaded.root_height, 0.0], dtype=np.float32)
     heights = loaded.config.foot_heights
     if not heights:
         return lifted
     feet = foot_joints(loaded.skeleton)
-    return plant_feet(lifted, contacts > 0.5, loaded.skeleton, feet, heights, fps=loaded.config.fps)
+    return plant_feet(lifted, contacts > 0.5, loaded.skeleton, feet, heights)
 
 
 def decode_display(loaded: LoadedModi, codes: np.ndarray, psi: float = 1.0) -> np.ndarray:

@@ -24,7 +24,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from engine.errors import ConfigError
-from engine.motion.contact import contact_labels, leg_chains
+from engine.motion.contact import leg_chains
 from engine.motion.motion import Motion
 from engine.motion.skeleton import Skeleton
 
@@ -162,32 +162,27 @@ def plant_feet(
     ramp: int = PLANT_RAMP,
     reach: float = PLANT_REACH,
     ground: bool = True,
-    fps: float | None = None,
 ) -> np.ndarray:
     """Joints (B, T, J, 3), floor y = 0, with planted feet pinned and no foot under its resting height.
 
     With ``ground`` a clip whose feet never come down to the floor is first lowered onto it
     (``lower_to_floor``). Per leg (``leg_chains``): while its lowest-resting foot joint (the toe) is
-    planted (``contact`` (B, T, F) over ``feet``, resting ``heights`` (F,); with ``fps``, also wherever
-    the motion itself has the joint on the floor and slow, ``contact_labels``; breaks of up to
+    planted (``contact`` (B, T, F) over ``feet``, resting ``heights`` (F,); breaks of up to
     ``PLANT_BRIDGE`` frames filled), that joint keeps the mean floor position of the contact and sits at
     its resting height. It is held no more than ``reach`` metres along the floor from where it was
     decoded, nor further than the leg reaches from its hip (plus ``PLANT_SLACK``): a foot decoded
     sliding further is dragged rather than torn from the leg or lifted off the floor. The shift fades out
     over ``ramp`` frames either side, and passes linearly from one contact's shift to the next across a
-    shorter gap, so pinning never makes a foot jump along the floor; its lowering is not carried into
-    those frames (a foot lifting off or coming down is not held to the floor). Any frame whose foot
-    joints dip under their resting heights is lifted to them. The foot moves rigidly and the knee is
-    re-solved by two-bone IK (hip fixed, bone lengths kept; a target out of reach is approached along the
-    hip-to-target line), so the pose stays one a BVH holds exactly.
+    shorter gap, so pinning never makes a foot jump. Any frame whose foot joints dip under their resting
+    heights is lifted to them. The foot moves rigidly and the knee is re-solved by two-bone IK (hip fixed,
+    bone lengths kept; a target out of reach is approached along the hip-to-target line), so the pose
+    stays one a BVH holds exactly.
     """
     out = np.array(joints, dtype=np.float64, copy=True)
     feet, heights = list(feet), np.asarray(heights, dtype=np.float64)
     if ground:
         out = lower_to_floor(out, feet, heights)
     planted = np.asarray(contact, bool)
-    if fps is not None:
-        planted = planted | contact_labels(out, fps, feet, heights)
     for hip, knee, ankle, below in leg_chains(skeleton):
         leg = [ankle, *below]
         cols = [feet.index(j) for j in leg if j in feet]
@@ -231,8 +226,7 @@ def _pin_shift(pos: np.ndarray, planted: np.ndarray, rest: float, ramp: int, rea
     """(B, T, 3) shift that holds joint positions ``pos`` (B, T, 3) at height ``rest`` and at the mean
     floor point of each contact (``planted`` (B, T)), or ``reach`` metres short of it where the joint
     strays further. Between contacts the shift fades out linearly over ``ramp`` frames, and across a gap
-    too short for both fades it passes linearly from one contact's shift to the next one's; there its
-    height part only lifts."""
+    too short for both fades it passes linearly from one contact's shift to the next one's."""
     b, t = planted.shape
     starts = planted & ~np.concatenate([np.zeros((b, 1), bool), planted[:, :-1]], axis=1)
     seg = np.cumsum(starts, axis=1) + (np.arange(b) * (t + 1))[:, None]
@@ -252,9 +246,7 @@ def _pin_shift(pos: np.ndarray, planted: np.ndarray, rest: float, ramp: int, rea
     fade_in = np.where(nxt < t, np.clip(1.0 - (nxt - frames) / span, 0.0, 1.0), 0.0)
     before = np.take_along_axis(delta, np.clip(last, 0, t - 1)[..., None], axis=1)
     after = np.take_along_axis(delta, np.clip(nxt, 0, t - 1)[..., None], axis=1)
-    between = fade_out[..., None] * before + fade_in[..., None] * after
-    between[..., 1] = np.maximum(between[..., 1], 0.0)
-    return np.where(planted[..., None], delta, between)
+    return np.where(planted[..., None], delta, fade_out[..., None] * before + fade_in[..., None] * after)
 
 
 def _within_leg(delta: np.ndarray, hip: np.ndarray, knee: np.ndarray, ankle: np.ndarray) -> np.ndarray:

@@ -86,41 +86,10 @@ def test_across_a_short_gap_the_shift_passes_linearly_from_one_contact_to_the_ne
     for frame, share in ((18, 1 / 4), (19, 2 / 4), (20, 3 / 4)):
         expected = raw[frame] + before + share * (after - before)
         np.testing.assert_allclose(out[frame, 6, [0, 2]], expected, atol=1e-9)
-    steps = np.linalg.norm(np.diff(out[:, 6, [0, 2]], axis=0), axis=1)
+    steps = np.linalg.norm(np.diff(out[:, 6], axis=0), axis=1)
     slide = 0.3 / FPS
     # 0.2 m of shift change spread over the four steps of the gap, never in one frame
     assert steps.max() == pytest.approx(np.linalg.norm(after - before) / 4 + slide)
-    # the contacts bring the hovering toe 1 cm down to the floor; between them it keeps its height
-    np.testing.assert_allclose(out[[*range(5, 18), *range(21, 34)], 6, 1], 0.0, atol=1e-9)
-    np.testing.assert_allclose(out[18:21, 6, 1], clip[18:21, 6, 1], atol=1e-9)
-
-
-def test_a_foot_lifting_off_is_not_held_down_by_the_contact_before_it() -> None:
-    clip = _sliding()  # toe 1 cm above the floor
-    clip[30:, 4:7, 1] += 0.02 * np.arange(1, 11)[:, None]  # the leg lifts 2 cm a frame after the contact
-    contact = np.zeros((1, 40, 2), bool)
-    contact[0, 10:30, 1] = True
-    out = plant_feet(clip[None], contact, skeleton(), FEET, HEIGHTS, ground=False)[0]
-    np.testing.assert_allclose(out[10:30, 6, 1], 0.0, atol=1e-9)
-    # the floor shift still fades out over the ramp, the 1 cm lowering does not follow the foot up
-    np.testing.assert_allclose(out[30:, 6, 1], clip[30:, 6, 1], atol=1e-9)
-    assert (
-        np.abs(out[30 : 30 + PLANT_RAMP - 1, 6, [0, 2]] - clip[30 : 30 + PLANT_RAMP - 1, 6, [0, 2]]).max() > 0
-    )
-
-
-def test_with_fps_a_slow_foot_on_the_floor_is_planted_without_a_contact_label() -> None:
-    none = np.zeros((1, 40, 2), bool)
-    slow = _sliding(speed=0.2)  # the toe 1 cm up, 0.2 m/s: on the floor and slow by ``contact_labels``
-    out = plant_feet(slow[None], none, skeleton(), FEET, HEIGHTS, ground=False, fps=FPS)[0]
-    np.testing.assert_allclose(
-        out[:, 6, [0, 2]], np.broadcast_to(slow[:, 6, [0, 2]].mean(0), (40, 2)), atol=1e-9
-    )
-    np.testing.assert_allclose(out[:, 6, 1], 0.0, atol=1e-9)
-    np.testing.assert_allclose(plant_feet(slow[None], none, skeleton(), FEET, HEIGHTS, ground=False)[0], slow)
-    fast = _sliding(speed=1.5, hip_height=0.8)  # too fast to be planted: left as decoded
-    out = plant_feet(fast[None], none, skeleton(), FEET, HEIGHTS, ground=False, fps=FPS)[0]
-    np.testing.assert_allclose(out, fast, atol=1e-9)
 
 
 def test_a_contact_broken_for_two_frames_is_one_contact() -> None:
