@@ -25,6 +25,7 @@ METRICS = (
     ("reconstruction_accuracy", "Held-out reconstructions recognised as their action (0..1)"),
     ("bone_length_cv", "Worst-bone length variation (std/mean, median over clips)"),
     ("foot_skate_m_s", "Planted-foot speed (m/s)"),
+    ("foot_pop_m_s", "Foot pop: vertical foot speed, 99th percentile of frame steps (m/s)"),
     ("floor_penetration", "Frames with a foot > 2 cm under the floor (share)"),
     ("floor_depth_m", "Deepest foot point under the floor (m)"),
     ("float_share", "Clips floating > 10 cm for ≥ 0.5 s (share)"),
@@ -41,6 +42,7 @@ METRICS = (
     ("joint_range_excess", "Joint rotations outside 99 % of real ones (share of frame × joint)"),
 )
 SKATE_FLOOR = 0.02  # m/s: the planted-foot target for actions that stand still
+POP_RATIO, POP_FLOOR = 1.25, 0.1  # foot pop a model may reach: 1.25× real's, 0.1 m/s for standing actions
 SYNC_TOL = 0.3  # foot sync (a correlation) a gait may differ from real's: walks −0.4 to −0.65, a hop +1
 BACKWARD_TOL = 0.05  # share of planted feet pointing against travel a model may add to real's (0–0.1 %)
 STEP_SPEED = 0.1  # m/s: real feet slower than this on average do not step, so have no gait to alternate
@@ -104,6 +106,10 @@ def physics_targets(report: dict[str, Any]) -> list[str]:
         "worst-bone length variation ≤ 1 %": lambda g, r: mean(g, "bone_length_cv") <= 0.01,
         "planted-foot speed ≤ 1.5× real (2 cm/s floor)": lambda g, r: (
             mean(g, "foot_skate_m_s") <= max(1.5 * mean(r, "foot_skate_m_s"), SKATE_FLOOR)
+        ),
+        "feet lifting and landing no faster than real ones (foot pop ≤ 1.25× real, 0.1 m/s floor; this "
+        "project's)": lambda g, r: (
+            mean(g, "foot_pop_m_s") <= max(POP_RATIO * mean(r, "foot_pop_m_s"), POP_FLOOR)
         ),
         "under 1 % of frames with a foot 2 cm under the floor": lambda g, r: (
             mean(g, "floor_penetration") < 0.01

@@ -20,6 +20,7 @@ PER_ACTION_COLUMNS = (
     PerActionColumn("accuracy", "accuracy", "accuracy", "{:.2f}"),
     PerActionColumn("bone_length_cv", "bone cv", "bone cv", "{:.2%}"),
     PerActionColumn("foot_skate_m_s", "skate", "planted-foot speed (m/s)", "{:.3f}"),
+    PerActionColumn("foot_pop_m_s", "foot pop", "foot pop (m/s)", "{:.2f}"),
     PerActionColumn("floor_penetration", "under floor", "frames under floor", "{:.2%}"),
     PerActionColumn("float_share", "floating", "floating clips", "{:.0%}"),
     PerActionColumn("hand_speed_m_s", "hand speed", "hand speed (m/s)", "{:.2f}"),

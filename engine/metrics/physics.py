@@ -26,6 +26,11 @@ pairs whose foot is planted (its toe joint within ``PLANTED_TOL`` of the clip's 
 span's middle) and points against the direction of travel (the ankle-to-toe bone seen from above): real
 gaits put their feet down pointing the way they go; a decoder that turns the feet round does not.
 
+Foot pop (``foot_pop``): the 99th percentile, over every frame step and foot joint of a set, of the
+joints' vertical speed: feet that jump up or drop down faster than real feet lift and land (a clean-up
+that pins a foot on the floor and lets it go in one frame) show there while the planted-foot speed looks
+right.
+
 Torso twist (``torso_twist``): the angle, seen from above, between the axis through the tops of the two
 arms (the shoulders) and the axis through the two hips, in every frame (real Bandai walks: 6.8° mean
 absolute, one clip per style, from 2.2° elderly to 13.7° active; waves about 1°).
@@ -47,6 +52,7 @@ FLOAT_SECONDS = 0.5
 HEADING_SPAN = 0.5
 MOVING_SPEED = 0.5
 LATE_SHARE = 1 / 3
+POP_QUANTILE = 0.99
 
 
 def bone_length_cv(joints: np.ndarray, parents: np.ndarray) -> float:
@@ -78,6 +84,13 @@ def foot_skate(clips: Sequence[np.ndarray], feet: Sequence[int], fps: float) -> 
     """Mean horizontal speed (m/s) of planted foot joints over every planted frame step of ``clips``."""
     speeds = np.concatenate([_planted_speeds(c, feet, fps) for c in clips] or [np.zeros(0)])
     return float(speeds.mean()) if speeds.size else float("nan")
+
+
+def foot_pop(clips: Sequence[np.ndarray], feet: Sequence[int], fps: float) -> float:
+    """The ``POP_QUANTILE`` quantile (m/s) of foot joints' vertical speed over every step of ``clips``."""
+    steps = [np.abs(np.diff(np.asarray(c, np.float64)[:, list(feet), 1], axis=0)).ravel() for c in clips]
+    speeds = np.concatenate(steps or [np.zeros(0)]) * fps
+    return float(np.quantile(speeds, POP_QUANTILE)) if speeds.size else float("nan")
 
 
 def floor_penetration(clips: Sequence[np.ndarray], feet: Sequence[int]) -> tuple[float, float]:
@@ -216,6 +229,7 @@ def physics_metrics(clips: Sequence[np.ndarray], skeleton: Skeleton, fps: float)
     out = {"bone_length_cv": median_bone_length_cv(clips, skeleton.parents)}
     if feet:
         out["foot_skate_m_s"] = foot_skate(clips, feet, fps)
+        out["foot_pop_m_s"] = foot_pop(clips, feet, fps)
         out["floor_penetration"], out["floor_depth_m"] = floor_penetration(clips, feet)
         out["float_share"] = float_share(clips, feet, fps)
     for name, limbs in (("hand", hands), ("foot", feet)):

@@ -77,6 +77,38 @@ def test_a_foot_that_swings_high_is_not_planted() -> None:
     assert physics.foot_skate([clip], [6], FPS) == pytest.approx(0.0)
 
 
+def test_foot_pop_is_the_99th_percentile_of_vertical_foot_speed() -> None:
+    steady = standing(101)
+    steady[:, 5:, 1] += np.arange(101)[:, None] * 0.4 / FPS  # feet rise at 0.4 m/s throughout
+    assert physics.foot_pop([steady], [5, 6], FPS) == pytest.approx(0.4)
+    assert physics.foot_pop([standing()], [5, 6], FPS) == 0.0
+    smooth, popped = standing(201), standing(201)
+    smooth[100:106, 6, 1] = np.linspace(0.0, 0.1, 6)  # a toe lifted 10 cm over 5 frames (0.4 m/s)...
+    smooth[106:, 6, 1] = 0.1
+    popped[100:, 6, 1] = 0.1  # ...and one released from the floor in a single frame (2 m/s)
+    # 800 steps over the two feet joints: 5 at 0.4 m/s and 1 at 2 m/s, the rest still
+    speeds = np.r_[np.zeros(794), np.full(5, 0.4), 2.0]
+    assert physics.foot_pop([smooth, popped], [5, 6], FPS) == pytest.approx(np.quantile(speeds, 0.99))
+    stepping, popping = standing(201), standing(201)  # a toe stepping every second: ramps against jumps
+    for start in range(0, 200, 20):
+        stepping[start : start + 6, 6, 1] = np.r_[np.linspace(0.0, 0.1, 5), 0.1]
+        stepping[start + 6 : start + 11, 6, 1] = np.linspace(0.1, 0.0, 5)
+        popping[start + 1 : start + 10, 6, 1] = 0.1
+    assert physics.foot_pop([stepping], [6], FPS) == pytest.approx(0.5)
+    assert physics.foot_pop([popping], [6], FPS) == pytest.approx(2.0)
+
+
+def test_real_feet_lift_and_land_faster_in_runs_than_in_walks(bandai_dir) -> None:
+    pops = {}
+    for action in ("walk", "run"):
+        clips = [
+            read_motion(p) for p in sorted((bandai_dir / "data").glob(f"dataset-2_{action}_*_00[12].bvh"))
+        ]
+        feet = foot_joints(clips[0].skeleton)
+        pops[action] = physics.foot_pop([c.joints for c in clips], feet, clips[0].fps)
+    assert 0.3 < pops["walk"] < 1.5 and pops["run"] > 1.5 * pops["walk"]
+
+
 def test_a_sinking_clip_penetrates_the_floor() -> None:
     clip = standing()
     clip[:, :, 1] -= np.linspace(0.0, 0.1, 40)[:, None]  # toes sink to 10 cm under the floor
@@ -119,6 +151,7 @@ def test_physics_metrics_row() -> None:
     assert set(row) == {
         "bone_length_cv",
         "foot_skate_m_s",
+        "foot_pop_m_s",
         "floor_penetration",
         "floor_depth_m",
         "float_share",

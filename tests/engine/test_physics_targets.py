@@ -48,3 +48,20 @@ def test_feet_pointing_backwards_are_judged_against_real_where_real_ones_travel(
     lines = physics_targets({"per_action": {"walk": walk, "run": run, "wave": wave}})  # waves do not travel
     feet = next(line for line in lines if line.startswith("- feet pointing the way they go"))
     assert feet.endswith("2/3 actions — missed (walk).")
+
+
+def test_feet_popping_off_the_floor_faster_than_real_ones_miss() -> None:
+    walk, run, wave = (
+        _action((-0.6, -0.6), (1.2, 1.3)),
+        _action((-0.8, -0.85), (2.7, 3.0)),
+        _action((0.9, 0.96), (0, 0)),
+    )
+    walk["generated"] |= _side(foot_pop_m_s=1.18)  # feet released from the floor in one frame
+    walk["real"] |= _side(foot_pop_m_s=0.91)
+    run["generated"] |= _side(foot_pop_m_s=2.8)
+    run["real"] |= _side(foot_pop_m_s=2.81)
+    wave["generated"] |= _side(foot_pop_m_s=0.03)  # standing feet: under the 0.1 m/s floor
+    wave["real"] |= _side(foot_pop_m_s=0.01)
+    lines = physics_targets({"per_action": {"walk": walk, "run": run, "wave": wave}})
+    pop = next(line for line in lines if line.startswith("- feet lifting and landing"))
+    assert pop.endswith("2/3 actions — missed (walk).")
