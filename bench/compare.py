@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import argparse
 import datetime as dt
+import hashlib
 import json
 import logging
 import sys
@@ -446,12 +447,20 @@ def _shown_argv(argv: Sequence[str]) -> list[str]:
     return out
 
 
+def engine_fingerprint() -> str:
+    """A hash of every engine source file: an evaluation the engine made before a code change is stale."""
+    digest = hashlib.sha256()
+    for path in sorted((REPO / "engine").rglob("*.py")):
+        digest.update(path.relative_to(REPO).as_posix().encode() + b"\0" + path.read_bytes())
+    return digest.hexdigest()[:16]
+
+
 def _fresh_eval(
     saved: Path, folder: Path, classifier: Classifier, evaluation: dict[str, Any], strategy: str | None
 ) -> bool:
     """Whether ``saved`` evaluated the model now in ``folder`` (written after its weights) with this
-    classifier (same held-out accuracy), evaluation settings and strategy (None: whichever its kind's
-    evaluation uses)."""
+    classifier (same held-out accuracy), evaluation settings, strategy (None: whichever its kind's
+    evaluation uses) and engine code (``engine_fingerprint``)."""
     weights = Path(folder) / "model.safetensors"
     if not saved.is_file() or not weights.is_file() or saved.stat().st_mtime < weights.stat().st_mtime:
         return False
@@ -459,7 +468,8 @@ def _fresh_eval(
     same_strategy = strategy is None or meta.get("strategy") == strategy
     same = all(meta.get(k) == v for k, v in evaluation.items()) and same_strategy
     same_classifier = meta.get("classifier_test_accuracy") == classifier.test_accuracy
-    return same and same_classifier and meta.get("model") == str(folder)
+    same_code = meta.get("engine_fingerprint") == engine_fingerprint()
+    return same and same_classifier and same_code and meta.get("model") == str(folder)
 
 
 def _saved_or_run(saved: Path, reuse: bool, run: Callable[[], dict[str, Any]]) -> tuple[dict[str, Any], bool]:
@@ -468,6 +478,7 @@ def _saved_or_run(saved: Path, reuse: bool, run: Callable[[], dict[str, Any]]) -
     if reuse:
         return json.loads(saved.read_text()), True
     report = run()
+    report["meta"] = report.get("meta", {}) | {"engine_fingerprint": engine_fingerprint()}
     atomic_write_text(saved, json.dumps(report, indent=2))
     return report, False
 
@@ -645,7 +656,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         + "; the same classifier and real sets for every row",
         "Physical figures": "`engine.metrics.physics` at display height (floor y = 0): worst-bone length "
         "std/mean per clip (median), horizontal speed of foot joints planted within 3 cm of the clip's "
-        "lowest foot height, share of frames with the lowest foot joint > 2 cm under the floor, share of "
+        "lowest foot height, the 99th percentile of the foot joints' vertical speed (foot pop: feet "
+        "released from or slammed onto the floor), share of frames with the lowest foot joint > 2 cm under "
+        "the floor, share of "
         "clips whose feet stay > 10 cm up for 0.5 s, mean hand speed, mean jerk of every joint, the angle "
         "between the hips' facing line and the pelvis's travel over 0.5 s where it moves at 0.5 m/s or "
         "more (heading), the mean absolute angle between the shoulders' axis and the hips' (torso twist), "

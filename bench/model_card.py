@@ -231,8 +231,8 @@ def write_model_card(out: Path, report: dict[str, Any], info: dict[str, Any], sm
         *metric_table(report),
         "",
         "Physical figures: feet are the Foot/Toes joints, hands the Hand joints (found by name), floor "
-        "y = 0; a foot joint is planted within 3 cm of the clip's lowest foot height "
-        "(`engine.metrics.physics`).",
+        "y = 0; a foot joint is planted within 3 cm of the clip's lowest foot height; foot pop is the 99th "
+        "percentile of the foot joints' vertical speed over every frame step (`engine.metrics.physics`).",
         "",
         "## Per action (generated / real)",
         "",

@@ -7,7 +7,10 @@ import os
 from pathlib import Path
 from types import SimpleNamespace
 
-from bench.compare import _fresh_eval
+import pytest
+
+import bench.compare
+from bench.compare import _fresh_eval, engine_fingerprint
 
 SETTINGS = {"repeats": 10, "n_per_action": 50, "seed": 0}
 
@@ -19,6 +22,7 @@ def _saved(tmp_path: Path, strategy: str) -> tuple[Path, Path]:
     (folder / "model.safetensors").write_bytes(b"weights")
     saved = tmp_path / "eval_model_1.json"
     meta = SETTINGS | {"model": str(folder), "strategy": strategy, "classifier_test_accuracy": 0.96}
+    meta["engine_fingerprint"] = engine_fingerprint()
     saved.write_text(json.dumps({"meta": meta}))
     later = (folder / "model.safetensors").stat().st_mtime + 10
     os.utime(saved, (later, later))
@@ -35,4 +39,24 @@ def test_a_kind_evaluated_with_its_own_strategy_is_reused_and_a_changed_one_is_n
     assert not _fresh_eval(saved, folder, SimpleNamespace(test_accuracy=0.9), SETTINGS, None)
     os.utime(folder / "model.safetensors", None)  # weights rewritten after the evaluation
     os.utime(saved, (0, 0))
+    assert not _fresh_eval(saved, folder, classifier, SETTINGS, None)
+
+
+def test_an_evaluation_made_by_other_engine_code_is_not_reused(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    (tmp_path / "runs").mkdir()
+    saved, folder = _saved(tmp_path / "runs", "prior")
+    classifier = SimpleNamespace(test_accuracy=0.96)
+    repo = tmp_path / "repo"
+    (repo / "engine" / "motion").mkdir(parents=True)
+    source = repo / "engine" / "motion" / "ik.py"
+    source.write_text("RAMP = 3\n")
+    monkeypatch.setattr(bench.compare, "REPO", repo)
+    report = json.loads(saved.read_text())
+    report["meta"]["engine_fingerprint"] = engine_fingerprint()
+    saved.write_text(json.dumps(report))
+    os.utime(saved, (os.stat(folder / "model.safetensors").st_mtime + 10,) * 2)
+    assert _fresh_eval(saved, folder, classifier, SETTINGS, None)
+    source.write_text("RAMP = 1\n")  # the clean-up changed after the evaluation
     assert not _fresh_eval(saved, folder, classifier, SETTINGS, None)
