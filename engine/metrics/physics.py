@@ -70,19 +70,24 @@ def median_bone_length_cv(clips: Sequence[np.ndarray], parents: np.ndarray) -> f
     return float(np.median([bone_length_cv(c, parents) for c in clips]))
 
 
-def _planted_speeds(joints: np.ndarray, feet: Sequence[int], fps: float) -> np.ndarray:
-    """Horizontal speeds (m/s) of foot joints over the frame steps where they are planted."""
+def _planted_speeds(
+    joints: np.ndarray, feet: Sequence[int], fps: float, tol: float = PLANTED_TOL
+) -> np.ndarray:
+    """Horizontal speeds (m/s) of foot joints over the frame steps where they are planted (within ``tol``)."""
     pos = np.asarray(joints, dtype=np.float64)[:, list(feet)]
     height = pos[..., 1]
-    planted = height <= height.min() + PLANTED_TOL
+    planted = height <= height.min() + tol
     both = planted[1:] & planted[:-1]
     speed = np.linalg.norm(np.diff(pos[..., [0, 2]], axis=0), axis=-1) * fps
     return speed[both]
 
 
-def foot_skate(clips: Sequence[np.ndarray], feet: Sequence[int], fps: float) -> float:
-    """Mean horizontal speed (m/s) of planted foot joints over every planted frame step of ``clips``."""
-    speeds = np.concatenate([_planted_speeds(c, feet, fps) for c in clips] or [np.zeros(0)])
+def foot_skate(
+    clips: Sequence[np.ndarray], feet: Sequence[int], fps: float, tol: float = PLANTED_TOL
+) -> float:
+    """Mean horizontal speed (m/s) of planted foot joints (within ``tol`` of the clip's lowest foot
+    height) over every planted frame step of ``clips``."""
+    speeds = np.concatenate([_planted_speeds(c, feet, fps, tol) for c in clips] or [np.zeros(0)])
     return float(speeds.mean()) if speeds.size else float("nan")
 
 

@@ -75,6 +75,7 @@ def test_a_foot_that_swings_high_is_not_planted() -> None:
     clip[20:, 6, 1] += 0.1  # toe up from frame 20 and moving fast
     clip[20:, 6, 0] += np.arange(20) * 0.1
     assert physics.foot_skate([clip], [6], FPS) == pytest.approx(0.0)
+    assert physics.foot_skate([clip], [6], FPS, tol=0.15) == pytest.approx(2.0 * 19 / 39)  # 10 cm is planted
 
 
 def test_foot_pop_is_the_99th_percentile_of_vertical_foot_speed() -> None:
