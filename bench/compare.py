@@ -658,12 +658,11 @@ def main(argv: Sequence[str] | None = None) -> int:
         "std/mean per clip (median), horizontal speed of foot joints planted within 3 cm of the clip's "
         "lowest foot height, the 99th percentile of the foot joints' vertical speed (foot pop: feet "
         "released from or slammed onto the floor), share of frames with the lowest foot joint > 2 cm under "
-        "the floor, share of "
-        "clips whose feet stay > 10 cm up for 0.5 s, mean hand speed, mean jerk of every joint, the angle "
-        "between the hips' facing line and the pelvis's travel over 0.5 s where it moves at 0.5 m/s or "
-        "more (heading), the mean absolute angle between the shoulders' axis and the hips' (torso twist), "
-        "the correlation of the two ankles' horizontal velocities relative to the pelvis per clip (foot "
-        "sync: real gaits alternate, about −0.5 to −0.9; standing actions near +1)",
+        "the floor, share of clips whose feet stay > 10 cm up for 0.5 s, mean hand speed, mean jerk of "
+        "every joint, the angle between the hips' facing line and the pelvis's travel over 0.5 s where it "
+        "moves at 0.5 m/s or more (heading), the mean absolute angle between the shoulders' axis and the "
+        "hips' (torso twist), the correlation of the two ankles' horizontal velocities relative to the "
+        "pelvis per clip (foot sync: real gaits alternate, about −0.5 to −0.9; standing actions near +1)",
         "Rows": "this run made "
         + ", ".join((ROWS | labels)[e["row"]] for e in entries)
         + (
