@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import re
 
-from bench.train_default import model_switches
+from bench.train_default import card_argv, model_switches
 from engine.model.config import PAPER, OdmoConfig
 
 
@@ -22,3 +22,9 @@ def test_the_card_names_every_project_loss_weight_the_config_turns_on() -> None:
     for name in added:
         on = OdmoConfig(n_actions=3, n_joints=5, foot_joints=(3, 4), foot_heights=(0.0, 0.0), **{name: 2.5})
         assert f"`{name} = 2.5`" in model_switches(on), name
+
+
+def test_the_card_command_leaves_out_where_files_go_and_the_data_path() -> None:
+    argv = ["--data", "/home/me/bandai", "--work", "runs/w", "--out=resources/x", "--skip-train"]
+    argv += ["--reuse-eval", "--no-results", "--epochs", "100", "--threads", "2"]
+    assert card_argv(argv) == ["--data", "DATA", "--epochs", "100", "--threads", "2"]
