@@ -55,7 +55,7 @@ from engine.train.loop import train
 #: differs from the paper").
 BUNDLED_WEIGHTS = ("w_skate=0.01", "w_free=1", "w_speed=0.1", "w_velocity=0.1", "w_spectrum=0.5")
 BUNDLED_WEIGHTS += ("w_free_skate=0.05", "w_foot_height=10", "w_heading=1", "w_twist=1", "w_start=10")
-BUNDLED_WEIGHTS += ("w_stance=1", "w_rollout=10")
+BUNDLED_WEIGHTS += ("w_stance=1", "w_rollout=10", "w_foot_twist=1", "w_upper_speed=0.3")
 DEFAULT_OUT = Path(__file__).resolve().parents[1] / "resources" / "models" / "bandai2-odmo"
 
 
@@ -367,8 +367,8 @@ def loss_weights(pairs: list[str]) -> dict[str, float]:
 
 
 def card_argv(argv: list[str]) -> list[str]:
-    """The command line as the card shows it: the data folder as DATA, no --work/--out/--skip-train (they
-    only say where files go), so no machine paths."""
+    """The command line as the card shows it: the data folder as DATA, no --work/--out/--skip-train/
+    --reuse-eval/--no-results (they only say where files go), so no machine paths."""
     out, skip = [], False
     for i, token in enumerate(argv):
         if skip:
@@ -378,7 +378,7 @@ def card_argv(argv: list[str]) -> list[str]:
         if name in ("--work", "--out"):
             skip = "=" not in token
             continue
-        if name in ("--skip-train", "--reuse-eval"):
+        if name in ("--skip-train", "--reuse-eval", "--no-results"):
             continue
         if i > 0 and argv[i - 1] == "--data":
             token = "DATA"
