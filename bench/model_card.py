@@ -6,6 +6,7 @@ import datetime as dt
 from pathlib import Path
 from typing import Any
 
+from bench.warm_start import warm_start_line
 from engine.fileio import atomic_write_text
 from engine.metrics.per_action import per_action_markdown
 
@@ -213,6 +214,7 @@ def write_model_card(out: Path, report: dict[str, Any], info: dict[str, Any], sm
         f"for evaluation ({info['heldout']}; listed in `heldout_clips.txt`)",
         f"- Data fingerprint: `{info['fingerprint']}`",
         f"- Model: {info['model_switches']}",
+        *warm_start_line(info.get("warm_start")),
         f"- Evaluation classifier (in `classifier/`): accuracy {info['classifier_accuracy']:.3f} on every "
         "window (stride 10) of held-out training-side clips"
         + (

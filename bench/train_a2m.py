@@ -29,15 +29,14 @@ if __package__ in (None, ""):
 from bench.heldout import HELDOUT_FRACTION, SPLIT_SEED, heldout_split
 from bench.model_card import METRICS, cell, per_action_table, physics_targets, repo_path
 from bench.train_default import card_argv
+from bench.warm_start import warm_start_from, warm_start_line
 from engine.fileio import atomic_write_text
 from engine.generators.a2m import load_a2m
 from engine.metrics.a2m_eval import evaluate_a2m
 from engine.metrics.classifier import load_classifier
 from engine.model.a2m import A2mConfig
 from engine.motion.datasets import load_folder
-from engine.motion.motion import Motion
 from engine.train.a2m_loop import train_a2m
-from engine.train.kind_run import WarmStart
 
 ROOT = Path(__file__).resolve().parents[1]
 DEFAULT_OUT = ROOT / "resources" / "models" / "bandai2-a2m"
@@ -98,6 +97,7 @@ def main() -> int:
                 losses = " ".join(f"{k} {v:.4g}" for k, v in p.losses.items())
                 print(f"epoch {p.epoch}/{p.epochs} {losses} eta {p.eta_s / 60:.0f} min", flush=True)
 
+        start = None if args.warm_start is None else warm_start_from(args.warm_start, test_clips, load_a2m)
         result = train_a2m(
             train_clips,
             names,
@@ -107,7 +107,7 @@ def main() -> int:
             device=args.device,
             resume=args.resume,
             progress=show,
-            warm_start=None if args.warm_start is None else warm_start_from(args.warm_start, test_clips),
+            warm_start=start,
         )
         summary = {
             "train_seconds": result.train_seconds,
@@ -148,17 +148,6 @@ def main() -> int:
     card = model_card(report, trained.config, summary, sys.argv[1:], len(test_clips), dataset.fingerprint)
     atomic_write_text(out / "MODEL_CARD.md", card)
     return 0
-
-
-def warm_start_from(folder: Path, test_clips: list[Motion]) -> WarmStart:
-    """The weights of the A2M model in ``folder``; SystemExit if it trained on a held-out clip."""
-    loaded = load_a2m(folder, with_bank=False)
-    made = loaded.provenance
-    held_out = {Path(c.meta["source"]).name for c in test_clips}
-    if held_out & {Path(s).name for s in made.get("train_sources", [])}:
-        raise SystemExit(f"{folder}: that model trained on held-out clips; it cannot be warm-started from")
-    source = {k: made[k] for k in ("epochs", "windows_seen", "seed", "created") if k in made}
-    return WarmStart(loaded.model.state_dict(), {"model": folder.name, **source})
 
 
 def model_card(
@@ -252,17 +241,6 @@ def model_card(
         "",
     ]
     return "\n".join(lines)
-
-
-def warm_start_line(source: dict[str, Any] | None) -> list[str]:
-    """The card's line on the weights the run started from, if any."""
-    if not source:
-        return []
-    before = f"{source['epochs']} epochs" if "epochs" in source else "its own budget"
-    return [
-        f"- Started from the weights of `{source['model']}` ({before}, trained on the same split); the "
-        "budget above is this run's alone."
-    ]
 
 
 def lr_decay(config: A2mConfig) -> str:

@@ -2,11 +2,13 @@
 
     python bench/train_default.py --data "$(../shared/data/unpack)" [--resume]
 
-The defaults are the bundled model's settings (100 epochs, teacher forcing decaying from 1 towards 0.3
-over those 100 epochs, no same-action pull, the loss weights of ``BUNDLED_WEIGHTS``, log speed errors, the
-free-running skate term on the decode's own contacts, the reversed encoder, the residual pose decoder
-started at the mean pose, seed 0, one torch thread: training results differ between thread counts). The
-evaluation classifier in --work/classifier is reused when present.
+The defaults are the settings of the bundled model's first stage (100 epochs, teacher forcing decaying
+from 1 towards 0.3 over those 100 epochs, no same-action pull, the loss weights of ``BUNDLED_WEIGHTS``, log
+speed errors, the free-running skate term on the decode's own contacts, the reversed encoder, the residual
+pose decoder started at the mean pose, seed 0, one torch thread: training results differ between thread
+counts). The bundled model is that first stage fine-tuned (``--warm-start FOLDER`` starts from a model
+folder's weights): ``--warm-start STAGE1 --tf-start 0.3 --epochs 20 --weight w_skim=1``, as its card's
+command says. The evaluation classifier in --work/classifier is reused when present.
 
 Holds out 15 % of the clips (stratified by action and style, seed 2022; see bench/heldout.py), trains
 ODMO on the rest, trains the evaluation classifier on the same training clips, evaluates on the held-out
@@ -32,7 +34,8 @@ if __package__ in (None, ""):
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from bench.heldout import HELDOUT_FRACTION, SPLIT_SEED, heldout_split
-from bench.model_card import write_model_card
+from bench.model_card import repo_path, write_model_card
+from bench.warm_start import warm_start_from
 from engine.fileio import atomic_write_text
 from engine.generate import interpolate
 from engine.metrics.classifier import load_classifier, train_classifier
@@ -51,8 +54,8 @@ from engine.motion.datasets import load_folder
 from engine.motion.resample import resample_motion
 from engine.train.loop import train
 
-#: The bundled model's loss weights where they differ from OdmoConfig's defaults (README, "Where the model
-#: differs from the paper").
+#: The loss weights of the bundled model's first stage where they differ from OdmoConfig's defaults
+#: (README, "Where the model differs from the paper").
 BUNDLED_WEIGHTS = ("w_skate=0.01", "w_free=1", "w_speed=0.1", "w_velocity=0.1", "w_spectrum=0.5")
 BUNDLED_WEIGHTS += ("w_free_skate=0.05", "w_foot_height=10", "w_heading=1", "w_twist=1", "w_start=10")
 BUNDLED_WEIGHTS += ("w_stance=1", "w_rollout=10", "w_foot_twist=1", "w_upper_speed=0.3")
@@ -68,6 +71,15 @@ def parse_args() -> argparse.Namespace:
     p.add_argument("--epochs", type=int, default=100)
     p.add_argument(
         "--tf-decay-epochs", type=int, default=100, help="epochs until teacher forcing reaches its floor"
+    )
+    p.add_argument(
+        "--tf-start", type=float, default=1.0, help="teacher-forcing rate at the first epoch (its floor: 0.3)"
+    )
+    p.add_argument(
+        "--warm-start",
+        type=Path,
+        help="start from this ODMO model folder's weights (trained on this split; e.g. to fine-tune it with "
+        "another loss weight)",
     )
     p.add_argument(
         "--contrastive-pull", type=float, default=0.0, help="weight of the same-action pull (1: the paper's)"
@@ -228,6 +240,7 @@ def main() -> int:
         n_joints=dataset.skeleton.n_joints,
         epochs=args.epochs,
         tf_decay_epochs=args.tf_decay_epochs,
+        tf_start=args.tf_start,
         contrastive_pull=args.contrastive_pull,
         speed_error=args.speed_error,
         free_span=args.free_span,
@@ -263,6 +276,7 @@ def main() -> int:
                 )
                 bar.refresh()
 
+        start = None if args.warm_start is None else warm_start_from(args.warm_start, test_clips, load_model)
         result = train(
             train_clips,
             names,
@@ -272,6 +286,7 @@ def main() -> int:
             device=args.device,
             resume=args.resume,
             progress=show,
+            warm_start=start,
         )
         bar.close()
         # train() can leave torch on more threads than asked (2 after --threads 1): evaluate on those.
@@ -344,6 +359,7 @@ def main() -> int:
             "total_seconds": time.time() - started,
             "fingerprint": dataset.fingerprint,
             "model_switches": model_switches(loaded.config),
+            "warm_start": loaded.provenance.get("warm_start"),
         },
         smooth,
     )
@@ -367,8 +383,9 @@ def loss_weights(pairs: list[str]) -> dict[str, float]:
 
 
 def card_argv(argv: list[str]) -> list[str]:
-    """The command line as the card shows it: the data folder as DATA, no --work/--out/--skip-train/
-    --reuse-eval/--no-results (they only say where files go), so no machine paths."""
+    """The command line as the card shows it: the data folder as DATA, the warm start's folder relative to
+    the repository, no --work/--out/--skip-train/--reuse-eval/--no-results (they only say where files go),
+    so no machine paths."""
     out, skip = [], False
     for i, token in enumerate(argv):
         if skip:
@@ -382,6 +399,8 @@ def card_argv(argv: list[str]) -> list[str]:
             continue
         if i > 0 and argv[i - 1] == "--data":
             token = "DATA"
+        elif i > 0 and argv[i - 1] == "--warm-start":
+            token = repo_path(Path(token))
         elif name == "--data" and "=" in token:
             token = "--data=DATA"
         out.append(token)
@@ -479,6 +498,11 @@ def model_switches(config: OdmoConfig) -> str:
         parts.append(
             f"`w_free_skate = {config.w_free_skate:g}` (the planted-foot speed loss on that decode, "
             f"where {where} feet are planted)"
+        )
+    if config.w_skim > 0:
+        parts.append(
+            f"`w_skim = {config.w_skim:g}` (a loss on how far that decode's planted-foot speed, by the skate "
+            "rule made soft, exceeds the data's)"
         )
     if config.w_foot_height > 0:
         parts.append(

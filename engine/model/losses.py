@@ -8,7 +8,7 @@ from dataclasses import dataclass
 import torch
 from torch import Tensor
 
-from engine.metrics.physics import HEADING_SPAN, MOVING_SPEED
+from engine.metrics.physics import HEADING_SPAN, MOVING_SPEED, PLANTED_TOL
 from engine.model.config import OdmoConfig
 from engine.motion.contact import HEIGHT_TOL, foot_lines, hip_pair, shoulder_pair
 from engine.motion.skeleton import Skeleton
@@ -36,8 +36,10 @@ LOSS_TERMS = (
     "rollout",
     "upper_speed",
     "foot_twist",
+    "skim",
 )
 STANCE_TAU = 0.01  # metres: how much lower a foot joint must be than another to take the weight
+SKIM_TAU = 0.01  # metres: how softly a foot joint passes out of the skate rule's planted band
 
 
 def masked_mse(pred: Tensor, target: Tensor, mask: Tensor, axis_weights: Tensor | None = None) -> Tensor:
@@ -363,6 +365,28 @@ def foot_height_loss(pred: Tensor, target: Tensor, rest_heights: Sequence[float]
     return ((pred_h - real_h).square() * m).sum() / m.sum().clamp(min=1.0)
 
 
+def skim_speeds(feet: Tensor, mask: Tensor, fps: float) -> Tensor:
+    """(B,) the skate metric's planted-foot speed made soft: per window of foot joints ``feet`` (B, T, F, 3),
+    the mean over frame steps and joints of the squared horizontal speed (m²/s²), each step weighed by how
+    far inside ``PLANTED_TOL`` of the window's lowest foot point both its frames lie (a sigmoid of width
+    ``SKIM_TAU``), so a foot skimming the floor is slowed or lifted, whichever costs the decode less."""
+    pad = ~mask.bool().unsqueeze(-1)
+    floor = feet[..., 1].masked_fill(pad, float("inf")).amin(dim=(1, 2), keepdim=True).detach()
+    near = torch.sigmoid((PLANTED_TOL - (feet[..., 1] - floor)) / SKIM_TAU)
+    pairs = _real_pairs(mask).to(feet.dtype).unsqueeze(-1)
+    weight = near[:, 1:] * near[:, :-1] * pairs
+    speed2 = (feet[:, 1:, :, ::2] - feet[:, :-1, :, ::2]).square().sum(-1) * fps**2
+    return (weight * speed2).sum(dim=(1, 2)) / (pairs.sum(dim=(1, 2)) * feet.shape[2]).clamp(min=1.0)
+
+
+def skim_loss(pred: Tensor, target: Tensor, mask: Tensor, fps: float) -> Tensor:
+    """Mean over windows of how far (m²/s²) the ``skim_speeds`` of ``pred`` exceed those of ``target``
+    (B, T, F, 3): feet near the floor move no faster than the data's, and a decode gains nothing by
+    keeping them higher than the data does."""
+    excess = skim_speeds(pred, mask, fps) - skim_speeds(target, mask, fps).detach()
+    return excess.clamp(min=0.0).mean()
+
+
 def _heading_cosines(joints: Tensor, hips: tuple[int, int], span: int) -> tuple[Tensor, Tensor]:
     """Cosines (B, S) between the hips' axis at each span's middle and the horizontal travel of the
     hips' midpoint over ``span`` frames, and that travel (m)."""
@@ -497,6 +521,7 @@ def odmo_losses(
         "rollout": zero,
         "upper_speed": zero,
         "foot_twist": zero,
+        "skim": zero,
     }
     twist_on = free_joints is not None and hips is not None and shoulders is not None
     foot_twist_on = free_joints is not None and hips is not None and len(feet) > 0
@@ -535,6 +560,7 @@ def odmo_losses(
             if config.free_skate_contacts == "own":
                 contacts = own_contacts(free_feet, rest, mask)
             terms["free_skate"] = skate_loss(free_feet, contacts, mask, config.fps)
+            terms["skim"] = skim_loss(free_feet, joints[:, :, feet], mask, config.fps)
     if rollout is not None:
         start, rolled = rollout
         span = slice(start, start + rolled.shape[1])
@@ -564,6 +590,7 @@ def odmo_losses(
         "rollout": config.w_rollout if rollout is not None else 0.0,
         "upper_speed": config.w_upper_speed if free_joints is not None else 0.0,
         "foot_twist": config.w_foot_twist if foot_twist_on else 0.0,
+        "skim": config.w_skim if free_feet_on else 0.0,
     }
     terms["total"] = sum(weights[k] * terms[k] for k in LOSS_TERMS if weights[k] > 0)
     return terms

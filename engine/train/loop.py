@@ -29,7 +29,7 @@ from engine.train.epochs import (
     root_height,
     split_metas,
 )
-from engine.train.kind_run import KindRun, RunOptions
+from engine.train.kind_run import KindRun, RunOptions, WarmStart
 from engine.train.pairs import PairSampler
 from engine.train.rest_pose import centre_frames, mean_local_rotations
 from engine.train.windows import (
@@ -117,6 +117,7 @@ def _forward(
         "w_start",
         "w_stance",
         "w_upper_speed",
+        "w_skim",
     )
     if any(getattr(config, name) > 0 for name in free_terms):
         free = out.joints if truth is None else model.decode_full(z, data.actions, end).joints
@@ -348,6 +349,7 @@ def train(
     bank_projections: Sequence[str] = ("pca", "tsne", "umap"),
     bank_k_range: tuple[int, int] = (3, 11),
     ranks: Ranks = SINGLE,
+    warm_start: WarmStart | None = None,
 ) -> TrainResult:
     """Train an ODMO model on ``clips`` and write the model folder ``out_dir``.
 
@@ -358,7 +360,9 @@ def train(
     continues exactly from that checkpoint (the config may only differ in ``epochs``). ``cancel`` is
     checked before every step; cancelling raises CancelledError and keeps the last checkpoint. Across
     ``ranks`` (see ``engine.train.distributed``) each process trains on its share of every global batch
-    and rank 0 alone writes the folder; the other ranks' result has no bank.
+    and rank 0 alone writes the folder; the other ranks' result has no bank. With ``warm_start`` the model
+    starts from those weights (a fine-tune: the config may change its loss weights and schedule; a
+    checkpoint to resume from still wins) and the provenance names them.
     """
     out = Path(out_dir)
     options = RunOptions(seed, device, resume, val_fraction, progress, cancel, checkpoint_every, ranks)
@@ -372,12 +376,15 @@ def train(
     model = OdmoModel(config, seed=seed).to(dev)
     if config.mean_pose_init:
         start_at_mean_pose(model, prepared, data.train_idx)
+    if warm_start is not None:
+        warm_start.load_into(model)
     model.attach_skeleton(prepared.skeleton)
     validation = _validation_set(prepared, data.val_idx, seed, dev, config)
     run = data.train(OdmoSteps(model, prepared, data.train_idx, validation, ranks), out, config)
     if not ranks.is_main:
         return data.result(out, config, run, None)
-    made = data.provenance(run, config, processes=ranks.world)
+    started = {} if warm_start is None else {"warm_start": warm_start.source}
+    made = data.provenance(run, config, processes=ranks.world, **started)
     save_model(out, model, config, prepared.skeleton, prepared.action_names, made, root_height(prepared))
 
     codes, ends = _encode_all(model, prepared, dev)

@@ -4,6 +4,7 @@ baseline folders included), bone-length control, evaluation and the comparison t
 from __future__ import annotations
 
 import csv
+import hashlib
 import json
 from pathlib import Path
 
@@ -13,8 +14,8 @@ import torch
 from scipy.spatial.transform import Rotation
 
 from bench.compare import ROWS, per_action_entries, results_markdown
-from bench.train_a2m import warm_start_from
 from bench.truncation import sweep, sweep_table
+from bench.warm_start import warm_start_from, warm_start_line
 from engine.errors import ConfigError, ModelFormatError
 from engine.generators import SampleRequest, open_generator
 from engine.generators.a2m import decode_a2m, encode_a2m, generate_a2m, load_a2m
@@ -515,7 +516,13 @@ def test_the_bench_refuses_to_warm_start_from_a_model_that_saw_held_out_clips(
     trained_on = set(load_a2m(a2m_dir).provenance["train_sources"])
     held_out = [c for c, source in zip(procedural_clips, seen, strict=True) if source in trained_on][:1]
     with pytest.raises(SystemExit, match="trained on held-out clips"):
-        warm_start_from(a2m_dir, held_out)
+        warm_start_from(a2m_dir, held_out, load_a2m)
     unseen = [c for c, source in zip(procedural_clips, seen, strict=True) if source not in trained_on]
     assert unseen
-    assert warm_start_from(a2m_dir, unseen).source["model"] == a2m_dir.name
+    source = warm_start_from(a2m_dir, unseen, load_a2m).source
+    assert source["model"] == a2m_dir.name
+    weights = hashlib.sha256((a2m_dir / "model.safetensors").read_bytes()).hexdigest()
+    assert source["weights_sha256"] == weights
+    (line,) = warm_start_line(source)
+    assert f"`{a2m_dir.name}`" in line and weights[:12] in line
+    assert warm_start_line(None) == []

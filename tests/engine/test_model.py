@@ -32,6 +32,8 @@ from engine.model.losses import (
     prior_loss,
     shift_tolerant_mse,
     skate_loss,
+    skim_loss,
+    skim_speeds,
     span_mean_mse,
     spectrum_joints,
     spectrum_loss,
@@ -920,6 +922,31 @@ def test_the_stance_term_is_the_speed_of_the_lowest_foot() -> None:
     without = odmo_losses(dataclasses.replace(cfg, w_stance=0.0), **kw)
     assert float(losses["total"] - without["total"]) == pytest.approx(3 * 0.996, abs=3e-3)
     assert OdmoConfig.from_dict({k: v for k, v in cfg.to_dict().items() if k != "w_stance"}).w_stance == 0.0
+
+
+def test_the_skim_term_is_the_skate_rules_planted_speed_made_soft() -> None:
+    """Per window: the squared horizontal speed of feet within 3 cm of the window's lowest foot point,
+    weighed by a sigmoid of the height (0.5 at the rule's 3 cm edge), over steps and joints; the loss is
+    how far the decode's exceeds the data's, and its gradient lifts a sliding foot as well as slowing it."""
+    mask = torch.ones(1, 20, dtype=torch.bool)
+    near = torch.sigmoid(torch.tensor(3.0, dtype=torch.float64))  # a foot on the floor: 3 cm inside
+    skim = _two_feet(1.0, 2.0, 0.1)  # slides on the floor at 1 m/s while the other swings 10 cm up
+    assert float(skim_speeds(skim, mask, 20.0)) == pytest.approx(float(near**2) / 2, abs=1e-3)
+    edge = _two_feet(0.0, 2.0, 0.03)  # the swinging foot exactly at the edge counts half in each frame
+    assert float(skim_speeds(edge, mask, 20.0)) == pytest.approx(4.0 / 4 / 2, rel=1e-3)
+    lifted = _two_feet(0.0, 2.0, 0.2)
+    assert float(skim_speeds(lifted, mask, 20.0)) < 1e-6
+    assert float(skim_loss(lifted, skim, mask, 20.0)) == 0.0  # no gain for keeping feet higher than real
+    pred = skim.clone().requires_grad_()
+    loss = skim_loss(pred, lifted, mask, 20.0)
+    assert float(loss.detach()) == pytest.approx(float(near**2) / 2, abs=1e-3)
+    loss.backward()
+    assert (pred.grad[0, 1:-1, 0, 1] < 0).all()  # descending the loss raises the sliding foot
+    padded = mask.clone()
+    padded[0, 10:] = False
+    sped = skim.clone()
+    sped[0, 10:, 0, 0] = 10.0 * torch.arange(10, dtype=torch.float64)
+    assert float(skim_speeds(sped, padded, 20.0)) == pytest.approx(float(near**2) / 2, abs=1e-3)
 
 
 @pytest.mark.parametrize("update", ["absolute", "residual", "stepped"])

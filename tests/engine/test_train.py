@@ -10,10 +10,12 @@ import pytest
 import torch
 from safetensors.torch import load_file
 
-from engine.errors import CancelledError, ModelFormatError
+from engine.errors import CancelledError, ConfigError, ModelFormatError
 from engine.model.losses import LOSS_TERMS
+from engine.modelio import load_model
 from engine.motion.motion import Motion
 from engine.train.epochs import TrainProgress, write_log
+from engine.train.kind_run import WarmStart
 from engine.train.loop import _Noise, train
 from engine.train.pairs import PairSampler, split_clips
 from tests.fixtures.procedural import PROCEDURAL_ACTIONS
@@ -60,6 +62,29 @@ def test_the_rollout_term_trains_from_random_frames(tmp_path: Path, procedural_c
         rows = list(csv.DictReader(handle))
     assert float(rows[-1]["train_rollout"]) < float(rows[0]["train_rollout"])
     assert 0 < float(rows[-1]["val_rollout"]) < float(rows[0]["val_rollout"])
+
+
+def test_a_fine_tune_starts_from_the_saved_weights_with_other_loss_weights(
+    tiny_model_dir: Path, procedural_clips: list[Motion], tmp_path: Path
+) -> None:
+    """A warm start loads the saved model's weights in place of the initialisation (a step too small to
+    move them leaves them as saved; batch-norm statistics move with the batches), with another loss
+    weight and schedule, and the provenance names them; weights of another size are refused with the
+    folder named."""
+    source = load_model(tiny_model_dir).model.state_dict()
+    warm = WarmStart(source, {"model": tiny_model_dir.name, "epochs": 6})
+    config = tiny_config(epochs=1, lr=1e-12, w_skim=1.0, tf_start=0.3)
+    with single_thread():
+        train(procedural_clips[::2], PROCEDURAL_ACTIONS, tmp_path / "tuned", config, device="cpu",
+              bank_projections=("pca",), bank_k_range=(3, 3), warm_start=warm)  # fmt: skip
+    tuned = load_model(tmp_path / "tuned")
+    weights = dict(tuned.model.named_parameters())
+    assert weights and all(torch.allclose(v, source[k], atol=1e-6) for k, v in weights.items())
+    assert tuned.provenance["warm_start"] == {"model": tiny_model_dir.name, "epochs": 6}
+    assert tuned.config.w_skim == 1.0 and tuned.provenance["epochs"] == 1
+    with pytest.raises(ConfigError, match=f"cannot start from {tiny_model_dir.name}"):
+        train(procedural_clips[::2], PROCEDURAL_ACTIONS, tmp_path / "wide", tiny_config(motion_hidden=24),
+              device="cpu", warm_start=warm)  # fmt: skip
 
 
 def test_write_log_writes_a_csv_and_nothing_without_rows(tmp_path: Path) -> None:

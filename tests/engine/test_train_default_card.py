@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import re
+from pathlib import Path
 
 from bench.train_default import card_argv, model_switches
 from engine.model.config import PAPER, OdmoConfig
@@ -28,3 +29,17 @@ def test_the_card_command_leaves_out_where_files_go_and_the_data_path() -> None:
     argv = ["--data", "/home/me/bandai", "--work", "runs/w", "--out=resources/x", "--skip-train"]
     argv += ["--reuse-eval", "--no-results", "--epochs", "100", "--threads", "2"]
     assert card_argv(argv) == ["--data", "DATA", "--epochs", "100", "--threads", "2"]
+
+
+def test_the_card_command_names_a_warm_start_by_its_place_in_the_repository() -> None:
+    inside = str(Path(__file__).resolve().parents[2] / "resources" / "models" / "bandai2-odmo")
+    argv = ["--data", "/home/me/bandai", "--warm-start", inside, "--weight", "w_skim=1"]
+    assert card_argv(argv) == [
+        "--data",
+        "DATA",
+        "--warm-start",
+        "resources/models/bandai2-odmo",
+        "--weight",
+        "w_skim=1",
+    ]
+    assert card_argv(["--warm-start", "/elsewhere/runs/stage1"]) == ["--warm-start", "stage1"]
