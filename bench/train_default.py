@@ -504,6 +504,10 @@ def model_switches(config: OdmoConfig) -> str:
             f"`w_skim = {config.w_skim:g}` (a loss on how far that decode's planted-foot speed, by the skate "
             "rule made soft, exceeds the data's)"
         )
+    if config.w_stand > 0:
+        parts.append(
+            f"`w_stand = {config.w_stand:g}` (a loss on that decode's root height over its lowest foot)"
+        )
     if config.w_foot_height > 0:
         parts.append(
             f"`w_foot_height = {config.w_foot_height:g}` (a loss on that decode's sorted foot heights)"

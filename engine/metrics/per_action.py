@@ -29,6 +29,7 @@ PER_ACTION_COLUMNS = (
     PerActionColumn("foot_speed_m_s", "foot speed", "foot speed (m/s)", "{:.2f}"),
     PerActionColumn("foot_amplitude_m", "foot amp.", "foot amp. (m)", "{:.3f}"),
     PerActionColumn("jerk_m_s3", "jerk", "jerk (m/s³)", "{:.0f}"),
+    PerActionColumn("pelvis_height_m", "pelvis", "pelvis height (m)", "{:.2f}"),
     PerActionColumn("heading_error_deg", "heading", "heading (°)", "{:.1f}"),
     PerActionColumn("torso_twist_deg", "twist", "twist (°)", "{:.1f}"),
     PerActionColumn("foot_sync", "foot sync", "foot sync (r)", "{:+.2f}"),

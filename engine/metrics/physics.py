@@ -31,6 +31,10 @@ joints' vertical speed: feet that jump up or drop down faster than real feet lif
 that pins a foot on the floor and lets it go in one frame) show there while the planted-foot speed looks
 right.
 
+Pelvis height (``pelvis_height``): the mean height over the floor of the pelvis (the hips' parent; the
+root without leg chains) over every frame: a decode that draws its legs up and is lowered onto the floor
+by the foot clean-up runs crouched (its feet and their skate look right), one that floats stands tall.
+
 Torso twist (``torso_twist``): the angle, seen from above, between the axis through the tops of the two
 arms (the shoulders) and the axis through the two hips, in every frame (real Bandai walks: 6.8° mean
 absolute, one clip per style, from 2.2° elderly to 13.7° active; waves about 1°).
@@ -96,6 +100,11 @@ def foot_pop(clips: Sequence[np.ndarray], feet: Sequence[int], fps: float) -> fl
     steps = [np.abs(np.diff(np.asarray(c, np.float64)[:, list(feet), 1], axis=0)).ravel() for c in clips]
     speeds = np.concatenate(steps or [np.zeros(0)]) * fps
     return float(np.quantile(speeds, POP_QUANTILE)) if speeds.size else float("nan")
+
+
+def pelvis_height(clips: Sequence[np.ndarray], pelvis: int) -> float:
+    """Mean over ``clips`` of the ``pelvis`` joint's mean height (m) over the floor."""
+    return float(np.mean([np.asarray(c, dtype=np.float64)[:, pelvis, 1].mean() for c in clips]))
 
 
 def floor_penetration(clips: Sequence[np.ndarray], feet: Sequence[int]) -> tuple[float, float]:
@@ -246,6 +255,7 @@ def physics_metrics(clips: Sequence[np.ndarray], skeleton: Skeleton, fps: float)
     if hands:
         out["late_hand_speed_m_s"] = float(np.mean([limb_speed(c, hands, fps, LATE_SHARE) for c in clips]))
     out["jerk_m_s3"] = float(np.nanmean([mean_jerk(c, fps) for c in clips]))
+    out["pelvis_height_m"] = pelvis_height(clips, root if hips is None else int(skeleton.parents[hips[0]]))
     if hips is not None:  # travel is the pelvis's (the hips' parent): a rig's root may stay at the origin
         out["heading_error_deg"] = heading_error(clips, hips, int(skeleton.parents[hips[0]]), fps)
     if hips is not None and shoulders is not None:

@@ -37,6 +37,7 @@ LOSS_TERMS = (
     "upper_speed",
     "foot_twist",
     "skim",
+    "stand",
 )
 STANCE_TAU = 0.01  # metres: how much lower a foot joint must be than another to take the weight
 SKIM_TAU = 0.01  # metres: how softly a foot joint passes out of the skate rule's planted band
@@ -387,6 +388,21 @@ def skim_loss(pred: Tensor, target: Tensor, mask: Tensor, fps: float) -> Tensor:
     return excess.clamp(min=0.0).mean()
 
 
+def stand_heights(joints: Tensor, root: int, feet: Sequence[int], mask: Tensor) -> Tensor:
+    """(B,) mean over the real frames of each window (B, T, J, 3) of the ``root`` joint's height over the
+    lowest of its ``feet`` joints: how far the body stands up on its legs, wherever its floor is."""
+    stand = joints[:, :, root, 1] - joints[:, :, list(feet), 1].amin(dim=-1)
+    m = mask.to(joints.dtype)
+    return (stand * m).sum(1) / m.sum(1).clamp(min=1.0)
+
+
+def stand_loss(pred: Tensor, target: Tensor, root: int, feet: Sequence[int], mask: Tensor) -> Tensor:
+    """Squared error (m²) of ``stand_heights`` of ``pred`` against ``target``, mean over windows: a decode
+    that draws its legs up under a body at the data's height, which the clean-up then lowers onto the
+    floor crouched, pays for it (every foot term reads heights over the window's own floor)."""
+    return (stand_heights(pred, root, feet, mask) - stand_heights(target, root, feet, mask)).square().mean()
+
+
 def _heading_cosines(joints: Tensor, hips: tuple[int, int], span: int) -> tuple[Tensor, Tensor]:
     """Cosines (B, S) between the hips' axis at each span's middle and the horizontal travel of the
     hips' midpoint over ``span`` frames, and that travel (m)."""
@@ -522,6 +538,7 @@ def odmo_losses(
         "upper_speed": zero,
         "foot_twist": zero,
         "skim": zero,
+        "stand": zero,
     }
     twist_on = free_joints is not None and hips is not None and shoulders is not None
     foot_twist_on = free_joints is not None and hips is not None and len(feet) > 0
@@ -561,6 +578,7 @@ def odmo_losses(
                 contacts = own_contacts(free_feet, rest, mask)
             terms["free_skate"] = skate_loss(free_feet, contacts, mask, config.fps)
             terms["skim"] = skim_loss(free_feet, joints[:, :, feet], mask, config.fps)
+            terms["stand"] = stand_loss(free_joints, joints, root, feet, mask)
     if rollout is not None:
         start, rolled = rollout
         span = slice(start, start + rolled.shape[1])
@@ -591,6 +609,7 @@ def odmo_losses(
         "upper_speed": config.w_upper_speed if free_joints is not None else 0.0,
         "foot_twist": config.w_foot_twist if foot_twist_on else 0.0,
         "skim": config.w_skim if free_feet_on else 0.0,
+        "stand": config.w_stand if free_feet_on else 0.0,
     }
     terms["total"] = sum(weights[k] * terms[k] for k in LOSS_TERMS if weights[k] > 0)
     return terms

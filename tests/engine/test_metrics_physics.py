@@ -162,8 +162,21 @@ def test_physics_metrics_row() -> None:
         "foot_speed_m_s",
         "foot_amplitude_m",
         "jerk_m_s3",
+        "pelvis_height_m",
     }
     assert row["hand_speed_m_s"] == 0.0 and row["float_share"] == 0.0
+    assert row["pelvis_height_m"] == pytest.approx(1.0)  # no pair of legs: the root, 1 m up
+
+
+def test_pelvis_height_sees_a_body_lowered_onto_its_drawn_up_feet() -> None:
+    """The mean pelvis height over frames, then over clips: a clip crouched 0.4 m for half its frames reads
+    0.8 m where the standing one reads 1.0, while its feet stay on the floor."""
+    crouched = standing()
+    crouched[20:, :5, 1] -= 0.4  # root, spine, hand, hip and knee lowered; the ankle and toe stay put
+    assert physics.pelvis_height([standing()], 0) == pytest.approx(1.0)
+    assert physics.pelvis_height([crouched], 0) == pytest.approx(0.8)
+    assert physics.pelvis_height([standing(), crouched], 0) == pytest.approx(0.9)
+    assert physics.foot_skate([crouched], [5, 6], FPS) == 0.0
 
 
 def test_contact_labels_need_low_and_slow() -> None:

@@ -40,6 +40,8 @@ from engine.model.losses import (
     speed_loss,
     stance_loss,
     stance_speeds,
+    stand_heights,
+    stand_loss,
     start_mse,
     twist_loss,
     velocity_gram,
@@ -947,6 +949,26 @@ def test_the_skim_term_is_the_skate_rules_planted_speed_made_soft() -> None:
     sped = skim.clone()
     sped[0, 10:, 0, 0] = 10.0 * torch.arange(10, dtype=torch.float64)
     assert float(skim_speeds(sped, padded, 20.0)) == pytest.approx(float(near**2) / 2, abs=1e-3)
+
+
+def test_the_stand_term_sees_legs_drawn_up_wherever_the_floor_is() -> None:
+    """The mean over real frames of the root's height over the lowest foot joint; lifting the whole body
+    changes nothing, drawing the feet up under it does, and the loss is the squared difference (m²)."""
+    mask = torch.ones(1, 20, dtype=torch.bool)
+    body = torch.zeros(1, 20, 3, 3)  # root, left foot, right foot
+    body[0, :, 0, 1] = 0.9
+    body[0, ::2, 1, 1] = 0.1  # the left foot lifts 10 cm every other frame, the right stays down
+    assert float(stand_heights(body, 0, (1, 2), mask)) == pytest.approx(0.9)
+    floating = body + torch.tensor([0.0, 0.5, 0.0])
+    assert float(stand_loss(floating, body, 0, (1, 2), mask)) == pytest.approx(0.0, abs=1e-10)
+    tucked = body.clone()
+    tucked[0, :, 1:, 1] += 0.4  # both feet drawn 40 cm up under the body
+    assert float(stand_heights(tucked, 0, (1, 2), mask)) == pytest.approx(0.5)
+    assert float(stand_loss(tucked, body, 0, (1, 2), mask)) == pytest.approx(0.16)
+    padded = mask.clone()
+    padded[0, 10:] = False
+    tucked[0, 10:, 0, 1] = 9.0  # padded frames cost nothing
+    assert float(stand_heights(tucked, 0, (1, 2), padded)) == pytest.approx(0.5)
 
 
 @pytest.mark.parametrize("update", ["absolute", "residual", "stepped"])

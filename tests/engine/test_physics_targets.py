@@ -65,3 +65,16 @@ def test_feet_popping_off_the_floor_faster_than_real_ones_miss() -> None:
     lines = physics_targets({"per_action": {"walk": walk, "run": run, "wave": wave}})
     pop = next(line for line in lines if line.startswith("- feet lifting and landing"))
     assert pop.endswith("2/3 actions — missed (walk).")
+
+
+def test_a_body_lowered_onto_drawn_up_legs_misses_its_height_and_old_reports_are_not_judged() -> None:
+    walk, run = _action((-0.6, -0.6), (1.2, 1.3)), _action((-0.8, -0.85), (2.7, 3.0))
+    walk["generated"] |= _side(pelvis_height_m=0.86)  # 6 % under real: met
+    walk["real"] |= _side(pelvis_height_m=0.913)
+    run["generated"] |= _side(pelvis_height_m=0.48)  # a run crouched onto its tucked feet (stop 47)
+    run["real"] |= _side(pelvis_height_m=0.92)
+    lines = physics_targets({"per_action": {"walk": walk, "run": run}})
+    height = next(line for line in lines if line.startswith("- body at its real height"))
+    assert height.endswith("1/2 actions — missed (run).")
+    before = physics_targets({"per_action": {"walk": _action((-0.6, -0.6), (1.2, 1.3))}})
+    assert not any(line.startswith("- body at its real height") for line in before)
