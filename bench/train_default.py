@@ -455,8 +455,7 @@ def model_switches(config: OdmoConfig) -> str:
         )
     if config.foot_contact and config.w_skate != 1.0:
         parts.append(f"`w_skate = {config.w_skate:g}` (the weight of the planted-foot speed loss)")
-    if config.w_velocity > 0:
-        parts.append(f"`w_velocity = {config.w_velocity:g}` (an L2 loss on joint velocities)")
+    parts += _weighted(config, "w_velocity", "an L2 loss on joint velocities")
     if config.w_free > 0:
         per = f" of the mean pose per {config.free_span}-frame span" if config.free_span > 1 else ""
         if config.free_shift:
@@ -482,11 +481,9 @@ def model_switches(config: OdmoConfig) -> str:
             f"`w_upper_speed = {config.w_upper_speed:g}` (a loss on that decode's per-"
             f"{config.upper_speed_span}-frame-span {what}speeds of the joints outside the legs)"
         )
-    if config.w_foot_twist > 0:
-        parts.append(
-            f"`w_foot_twist = {config.w_foot_twist:g}` (a loss on the turn of that decode's feet against its "
-            "hips' axis)"
-        )
+    parts += _weighted(
+        config, "w_foot_twist", "a loss on the turn of that decode's feet against its hips' axis"
+    )
     if config.w_spectrum > 0:
         legs = "" if config.spectrum_legs else ", legs left out"
         per = f" per {config.spectrum_span}-frame span" if config.spectrum_span else ""
@@ -499,25 +496,16 @@ def model_switches(config: OdmoConfig) -> str:
             f"`w_free_skate = {config.w_free_skate:g}` (the planted-foot speed loss on that decode, "
             f"where {where} feet are planted)"
         )
-    if config.w_skim > 0:
-        parts.append(
-            f"`w_skim = {config.w_skim:g}` (a loss on how far that decode's planted-foot speed, by the skate "
-            "rule made soft, exceeds the data's)"
-        )
-    if config.w_stand > 0:
-        parts.append(
-            f"`w_stand = {config.w_stand:g}` (a loss on that decode's root height over its lowest foot)"
-        )
-    if config.w_foot_height > 0:
-        parts.append(
-            f"`w_foot_height = {config.w_foot_height:g}` (a loss on that decode's sorted foot heights)"
-        )
-    if config.w_stance > 0:
-        parts.append(f"`w_stance = {config.w_stance:g}` (a loss on the speed of that decode's lowest foot)")
-    if config.w_heading > 0:
-        parts.append(f"`w_heading = {config.w_heading:g}` (a loss on that decode's heading against its path)")
-    if config.w_twist > 0:
-        parts.append(f"`w_twist = {config.w_twist:g}` (a loss on that decode's torso twist)")
+    parts += _weighted(
+        config,
+        "w_skim",
+        "a loss on how far that decode's planted-foot speed, by the skate rule made soft, exceeds the data's",
+    )
+    parts += _weighted(config, "w_stand", "a loss on that decode's root height over its lowest foot")
+    parts += _weighted(config, "w_foot_height", "a loss on that decode's sorted foot heights")
+    parts += _weighted(config, "w_stance", "a loss on the speed of that decode's lowest foot")
+    parts += _weighted(config, "w_heading", "a loss on that decode's heading against its path")
+    parts += _weighted(config, "w_twist", "a loss on that decode's torso twist")
     if config.w_coordination > 0:
         which = "legs" if config.coordination_on == "legs" else "joints"
         parts.append(
@@ -543,6 +531,12 @@ def model_switches(config: OdmoConfig) -> str:
         + " and ".join(parts)
         + ("; a requested end location's floor position is reached exactly" if exact else "")
     )
+
+
+def _weighted(config: OdmoConfig, name: str, what: str) -> list[str]:
+    """The card's words for loss weight ``name`` (``what`` it weights) when the config turns it on."""
+    weight = getattr(config, name)
+    return [f"`{name} = {weight:g}` ({what})"] if weight > 0 else []
 
 
 def _size_mb(folder: Path) -> float:
