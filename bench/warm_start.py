@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import hashlib
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -14,14 +13,15 @@ from engine.train.kind_run import WarmStart
 def warm_start_from(folder: Path, test_clips: list[Motion], load: Callable[..., Any]) -> WarmStart:
     """The weights of the model in ``folder`` (read with the kind's ``load``); SystemExit if it trained
     on one of ``test_clips``, which the run to be evaluated on them must never have seen."""
-    loaded = load(folder, with_bank=False)
-    made = loaded.provenance
     held_out = {Path(c.meta["source"]).name for c in test_clips}
-    if held_out & {Path(s).name for s in made.get("train_sources", [])}:
-        raise SystemExit(f"{folder}: that model trained on held-out clips; it cannot be warm-started from")
-    source = {k: made[k] for k in ("epochs", "windows_seen", "seed", "created") if k in made}
-    weights = hashlib.sha256((folder / "model.safetensors").read_bytes()).hexdigest()
-    return WarmStart(loaded.model.state_dict(), {"model": folder.name, **source, "weights_sha256": weights})
+
+    def unseen(made: dict[str, Any]) -> None:
+        if held_out & {Path(s).name for s in made.get("train_sources", [])}:
+            raise SystemExit(
+                f"{folder}: that model trained on held-out clips; it cannot be warm-started from"
+            )
+
+    return WarmStart.from_folder(folder, load, unseen)
 
 
 def warm_start_line(source: dict[str, Any] | None) -> list[str]:

@@ -115,11 +115,13 @@ class TqdmProgress:
     """A tqdm bar fed by ``engine.train.loop.TrainProgress`` reports (loss terms, steps/s, ETA)."""
 
     def __init__(self) -> None:
-        self.bar = tqdm(total=1.0, unit="run", bar_format=_BAR, file=sys.stderr)
+        self.bar: tqdm | None = None  # drawn at the first report: an error before it prints one line alone
         self.stage = ""
 
     def __call__(self, report: TrainProgress) -> None:
         """Show one report."""
+        if self.bar is None:
+            self.bar = tqdm(total=1.0, unit="run", bar_format=_BAR, file=sys.stderr)
         if report.stage != self.stage:
             self.stage = report.stage
             self.bar.reset(total=1.0)
@@ -134,8 +136,9 @@ class TqdmProgress:
         self.bar.refresh()
 
     def close(self) -> None:
-        """Close the bar."""
-        self.bar.close()
+        """Close the bar, if it was drawn."""
+        if self.bar is not None:
+            self.bar.close()
 
 
 _BAR = "{desc}: {percentage:3.0f}%|{bar}| [{elapsed}<{remaining}] {postfix}"
@@ -200,6 +203,7 @@ def _cmd_train(args: argparse.Namespace) -> int:
         config = config_type(**fields)
     except TypeError as exc:
         raise ConfigError(f"bad {args.arch} setting: {exc}") from None
+    started = {} if args.warm_start is None else {"warm_start": _warm_start(args.arch, args.warm_start)}
     progress = TqdmProgress() if ranks.is_main else None
     try:
         with folder_lock(args.out, "training a model") if ranks.is_main else contextlib.nullcontext():
@@ -213,6 +217,7 @@ def _cmd_train(args: argparse.Namespace) -> int:
                 resume=args.resume,
                 progress=progress,
                 bank_projections=args.projections,
+                **started,
                 **({"ranks": ranks} if ranks.distributed else {}),
             )
     finally:
@@ -223,6 +228,22 @@ def _cmd_train(args: argparse.Namespace) -> int:
         losses = " ".join(f"{k}={v:.4g}" for k, v in result.train_losses.items())
         print(f"{result.model_dir}: {result.epochs} epochs, {result.train_seconds:.1f} s, {losses}")
     return 0
+
+
+def _warm_start(arch: str, folder: Path) -> Any:
+    """The weights of the ``arch`` model folder ``folder`` to start training from; ConfigError for a kind
+    that does not start from saved weights."""
+    from engine.train.kind_run import WarmStart
+
+    if arch == "a2m":
+        from engine.generators.a2m import load_a2m as load
+    elif arch == "odmo":
+        from engine.modelio import load_model as load
+    else:
+        raise ConfigError(
+            f"--warm-start: --arch {arch} trains from its initialisation only (odmo, a2m start from weights)"
+        )
+    return WarmStart.from_folder(folder, load)
 
 
 def _ranks(args: argparse.Namespace) -> Ranks:
@@ -396,6 +417,13 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--device", default="auto", choices=("auto", "cpu", "cuda"))
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--resume", action="store_true", help="continue from the folder's last checkpoint")
+    p.add_argument(
+        "--warm-start",
+        type=Path,
+        metavar="FOLDER",
+        help="start from this model folder's weights (a fine-tune; odmo and a2m): the settings may change "
+        "the loss weights and schedule, not the sizes",
+    )
     p.add_argument(
         "--arch",
         default="odmo",

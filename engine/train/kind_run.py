@@ -3,6 +3,7 @@ config, the split of the clips, the epoch loop, and the provenance and result of
 
 from __future__ import annotations
 
+import hashlib
 import platform
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
@@ -54,6 +55,26 @@ class WarmStart:
 
     state: Mapping[str, torch.Tensor]
     source: dict[str, Any]
+
+    @classmethod
+    def from_folder(
+        cls,
+        folder: Path,
+        load: Callable[..., Any],
+        check: Callable[[dict[str, Any]], None] | None = None,
+    ) -> WarmStart:
+        """The weights of model folder ``folder``, read with its kind's ``load`` (which refuses another
+        kind's folder) after ``check`` of its provenance; the source names the folder, its budget, seed
+        and date, and the weights' sha256."""
+        loaded = load(folder, with_bank=False)
+        made = loaded.provenance
+        if check is not None:
+            check(made)
+        source = {k: made[k] for k in ("epochs", "windows_seen", "seed", "created") if k in made}
+        weights = hashlib.sha256((Path(folder) / "model.safetensors").read_bytes()).hexdigest()
+        return cls(
+            loaded.model.state_dict(), {"model": Path(folder).name, **source, "weights_sha256": weights}
+        )
 
     def load_into(self, model: torch.nn.Module) -> None:
         """Copy the state into ``model``; ConfigError when its tensors are not the model's."""

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import hashlib
 import json
 import shutil
 from pathlib import Path
@@ -227,6 +228,34 @@ def test_train_writes_a_loadable_model(odmo, procedural_npz_dir, tmp_path, capsy
     loaded = load_model(out)
     assert loaded.action_names == ["jump", "walk", "wave"] and loaded.config.motion_hidden == 8
     assert loaded.bank is not None and len(loaded.bank.codes) == len(list(procedural_npz_dir.glob("*.npz")))
+
+
+@pytest.mark.slow
+def test_train_fine_tunes_from_a_model_folder_and_names_its_weights(
+    odmo, tiny_model_dir, procedural_npz_dir, tmp_path, capsys
+):
+    """``--warm-start`` starts from a folder's weights with another loss weight (the sizes must match)
+    and the provenance names them by sha256; another kind or other sizes get one error line."""
+    sizes = ["enc_hidden=32", "enc_fc=64", "traj_hidden=64", "motion_hidden=64", "batch_size=16"]
+    settings = [x for s in [*sizes, "epoch_size=32", "w_skim=1"] for x in ("--set", s)]
+    out = tmp_path / "tuned"
+    argv = [*_train_argv(procedural_npz_dir, out, "--warm-start", tiny_model_dir), "--epochs", 1]
+    assert odmo(*argv, *settings, "--device", "cpu", "--projections", "pca") == 0
+    tuned = load_model(out)
+    weights = hashlib.sha256((tiny_model_dir / "model.safetensors").read_bytes()).hexdigest()
+    assert tuned.provenance["warm_start"]["weights_sha256"] == weights
+    assert tuned.provenance["warm_start"]["model"] == tiny_model_dir.name and tuned.config.w_skim == 1.0
+    capsys.readouterr()
+    modi = [
+        *_train_argv(procedural_npz_dir, tmp_path / "m", "--arch", "modi", "--warm-start", tiny_model_dir)
+    ]
+    assert odmo(*modi) == 1
+    _one_error_line(capsys, "--warm-start", "modi")
+    narrow = [x for s in [*sizes[:3], "motion_hidden=8"] for x in ("--set", s)]
+    assert (
+        odmo(*_train_argv(procedural_npz_dir, tmp_path / "n", "--warm-start", tiny_model_dir), *narrow) == 1
+    )
+    _one_error_line(capsys, f"cannot start from {tiny_model_dir.name}")
 
 
 def test_train_rejects_unknown_settings(odmo, procedural_npz_dir, tmp_path, capsys):
