@@ -2,13 +2,12 @@
 
     python bench/train_default.py --data "$(../shared/data/unpack)" [--resume]
 
-The defaults are the settings of the bundled model's first stage (100 epochs, teacher forcing decaying
-from 1 towards 0.3 over those 100 epochs, no same-action pull, the loss weights of ``BUNDLED_WEIGHTS``, log
-speed errors, the free-running skate term on the decode's own contacts, the reversed encoder, the residual
-pose decoder started at the mean pose, seed 0, one torch thread: training results differ between thread
-counts). The bundled model is that first stage fine-tuned (``--warm-start FOLDER`` starts from a model
-folder's weights): ``--warm-start STAGE1 --tf-start 0.3 --epochs 20 --weight w_skim=1``, as its card's
-command says. The evaluation classifier in --work/classifier is reused when present.
+The defaults are the bundled model's settings (100 epochs, teacher forcing decaying from 1 towards 0.3
+over those 100 epochs, no same-action pull, the loss weights of ``BUNDLED_WEIGHTS``, log speed errors, the
+free-running skate term on the decode's own contacts, the reversed encoder, the residual pose decoder
+started at the mean pose, seed 0, one torch thread: training results differ between thread counts).
+``--warm-start FOLDER`` starts from a model folder's weights instead (a fine-tune, e.g. with another loss
+weight and ``--tf-start 0.3``). The evaluation classifier in --work/classifier is reused when present.
 
 Holds out 15 % of the clips (stratified by action and style, seed 2022; see bench/heldout.py), trains
 ODMO on the rest, trains the evaluation classifier on the same training clips, evaluates on the held-out
@@ -54,8 +53,8 @@ from engine.motion.datasets import load_folder
 from engine.motion.resample import resample_motion
 from engine.train.loop import train
 
-#: The loss weights of the bundled model's first stage where they differ from OdmoConfig's defaults
-#: (README, "Where the model differs from the paper").
+#: The bundled model's loss weights where they differ from OdmoConfig's defaults (README, "Where the model
+#: differs from the paper").
 BUNDLED_WEIGHTS = ("w_skate=0.01", "w_free=1", "w_speed=0.1", "w_velocity=0.1", "w_spectrum=0.5")
 BUNDLED_WEIGHTS += ("w_free_skate=0.05", "w_foot_height=10", "w_heading=1", "w_twist=1", "w_start=10")
 BUNDLED_WEIGHTS += ("w_stance=1", "w_rollout=10", "w_foot_twist=1", "w_upper_speed=0.3")

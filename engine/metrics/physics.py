@@ -240,6 +240,7 @@ def physics_metrics(clips: Sequence[np.ndarray], skeleton: Skeleton, fps: float)
     chains, the torso twist from them and two arms; each left out without)."""
     feet, hands, root = foot_joints(skeleton), hand_joints(skeleton), skeleton.root
     hips, shoulders, ankles = hip_pair(skeleton), shoulder_pair(skeleton), ankle_pair(skeleton)
+    pelvis = root if hips is None else int(skeleton.parents[hips[0]])  # a rig's root may stay at the origin
     out = {"bone_length_cv": median_bone_length_cv(clips, skeleton.parents)}
     if feet:
         out["foot_skate_m_s"] = foot_skate(clips, feet, fps)
@@ -255,15 +256,15 @@ def physics_metrics(clips: Sequence[np.ndarray], skeleton: Skeleton, fps: float)
     if hands:
         out["late_hand_speed_m_s"] = float(np.mean([limb_speed(c, hands, fps, LATE_SHARE) for c in clips]))
     out["jerk_m_s3"] = float(np.nanmean([mean_jerk(c, fps) for c in clips]))
-    out["pelvis_height_m"] = pelvis_height(clips, root if hips is None else int(skeleton.parents[hips[0]]))
-    if hips is not None:  # travel is the pelvis's (the hips' parent): a rig's root may stay at the origin
-        out["heading_error_deg"] = heading_error(clips, hips, int(skeleton.parents[hips[0]]), fps)
+    out["pelvis_height_m"] = pelvis_height(clips, pelvis)
+    if hips is not None:  # travel is the pelvis's (the hips' parent)
+        out["heading_error_deg"] = heading_error(clips, hips, pelvis, fps)
     if hips is not None and shoulders is not None:
         out["torso_twist_deg"] = torso_twist(clips, hips, shoulders)
     if ankles is not None and hips is not None:
-        out["foot_sync"] = foot_sync(clips, ankles, int(skeleton.parents[hips[0]]))
+        out["foot_sync"] = foot_sync(clips, ankles, pelvis)
     toes = foot_lines(skeleton)
-    backward = feet_backward(clips, toes, int(skeleton.parents[hips[0]]), fps) if toes and hips else np.nan
+    backward = feet_backward(clips, toes, pelvis, fps) if toes and hips else np.nan
     if np.isfinite(backward):  # left out where nothing travels with a foot down
         out["feet_backward"] = backward
     return out

@@ -375,10 +375,10 @@ def train(
         )
     config = with_feet(config, prepared, data.train_idx)
     model = OdmoModel(config, seed=seed).to(dev)
-    if config.mean_pose_init:
-        start_at_mean_pose(model, prepared, data.train_idx)
     if warm_start is not None:
         warm_start.load_into(model)
+    elif config.mean_pose_init:
+        start_at_mean_pose(model, prepared, data.train_idx)
     model.attach_skeleton(prepared.skeleton)
     validation = _validation_set(prepared, data.val_idx, seed, dev, config)
     run = data.train(OdmoSteps(model, prepared, data.train_idx, validation, ranks), out, config)
