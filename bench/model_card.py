@@ -33,6 +33,7 @@ METRICS = (
     ("hand_speed_m_s", "Mean hand speed (m/s)"),
     ("hand_amplitude_m", "Hand oscillation amplitude (m, RMS about its mean)"),
     ("late_hand_speed_m_s", "Hand speed over each clip's last third (m/s)"),
+    ("hand_rhythm_hz", "Hand rhythm: power-weighted mean frequency of the hands' velocity (Hz)"),
     ("foot_speed_m_s", "Mean foot speed (m/s)"),
     ("foot_amplitude_m", "Foot oscillation amplitude (m)"),
     ("jerk_m_s3", "Mean jerk (m/s³)"),

@@ -26,6 +26,7 @@ PER_ACTION_COLUMNS = (
     PerActionColumn("hand_speed_m_s", "hand speed", "hand speed (m/s)", "{:.2f}"),
     PerActionColumn("hand_amplitude_m", "hand amp.", "hand amp. (m)", "{:.3f}"),
     PerActionColumn("late_hand_speed_m_s", "late hand", "late hand speed (m/s)", "{:.2f}"),
+    PerActionColumn("hand_rhythm_hz", "hand rhythm", "hand rhythm (Hz)", "{:.2f}"),
     PerActionColumn("foot_speed_m_s", "foot speed", "foot speed (m/s)", "{:.2f}"),
     PerActionColumn("foot_amplitude_m", "foot amp.", "foot amp. (m)", "{:.3f}"),
     PerActionColumn("jerk_m_s3", "jerk", "jerk (m/s³)", "{:.0f}"),

@@ -31,6 +31,10 @@ joints' vertical speed: feet that jump up or drop down faster than real feet lif
 that pins a foot on the floor and lets it go in one frame) show there while the planted-foot speed looks
 right.
 
+Hand rhythm (``limb_rhythm``): the power-weighted mean frequency (Hz) of the hands' velocity relative to
+the pelvis over each clip (Hann-windowed, its mean taken out): a wave that sweeps the arm slowly where real
+ones shake it at about 2 Hz moves its hands at part of their speed and shows the reason here.
+
 Pelvis height (``pelvis_height``): the mean height over the floor of the pelvis (the hips' parent; the
 root without leg chains) over every frame: a decode that draws its legs up and is lowered onto the floor
 by the foot clean-up runs crouched (its feet and their skate look right), one that floats stands tall.
@@ -145,6 +149,19 @@ def oscillation_amplitude(joints: np.ndarray, limbs: Sequence[int], root: int) -
     return float(np.sqrt(np.square(local - local.mean(axis=0)).sum(axis=-1).mean()))
 
 
+def limb_rhythm(joints: np.ndarray, limbs: Sequence[int], root: int, fps: float) -> float:
+    """Power-weighted mean frequency (Hz) of joints ``limbs``' root-relative velocity in one clip (NaN if
+    they keep a constant velocity)."""
+    pos = np.asarray(joints, dtype=np.float64)
+    velocity = np.diff(pos[:, list(limbs)] - pos[:, root : root + 1], axis=0) * fps
+    velocity -= velocity.mean(axis=0)
+    taper = np.hanning(len(velocity) + 1)[:-1, None, None]  # periodic Hann: a whole period stays in its bin
+    power = np.square(np.abs(np.fft.rfft(velocity * taper, axis=0))).sum(axis=(1, 2))[1:]
+    freqs = np.fft.rfftfreq(len(velocity), 1 / fps)[1:]
+    total = power.sum()
+    return float(freqs @ power / total) if total > 1e-12 else np.nan
+
+
 def mean_jerk(joints: np.ndarray, fps: float) -> float:
     """Mean norm (m/s³) of the third time difference of every joint in one clip."""
     pos = np.asarray(joints, dtype=np.float64)
@@ -255,6 +272,9 @@ def physics_metrics(clips: Sequence[np.ndarray], skeleton: Skeleton, fps: float)
             )
     if hands:
         out["late_hand_speed_m_s"] = float(np.mean([limb_speed(c, hands, fps, LATE_SHARE) for c in clips]))
+        rhythms = np.array([limb_rhythm(c, hands, pelvis, fps) for c in clips])
+        if np.isfinite(rhythms).any():  # left out where no hand moves
+            out["hand_rhythm_hz"] = float(np.nanmean(rhythms))
     out["jerk_m_s3"] = float(np.nanmean([mean_jerk(c, fps) for c in clips]))
     out["pelvis_height_m"] = pelvis_height(clips, pelvis)
     if hips is not None:  # travel is the pelvis's (the hips' parent)

@@ -47,7 +47,13 @@ CONTROL_KEYS = {"end_error_m", "end_error_pct", "control_accuracy"}
 CONTROL_KEYS |= {"end_error_out_m", "end_error_out_pct", "control_accuracy_out"}
 PHYSICS_KEYS = {"bone_length_cv", "foot_skate_m_s", "floor_penetration", "floor_depth_m", "float_share"}
 PHYSICS_KEYS |= {"hand_speed_m_s", "hand_amplitude_m", "foot_speed_m_s", "foot_amplitude_m", "jerk_m_s3"}
-PHYSICS_KEYS |= {"late_hand_speed_m_s", "joint_range_excess", "foot_pop_m_s", "pelvis_height_m"}
+PHYSICS_KEYS |= {
+    "late_hand_speed_m_s",
+    "joint_range_excess",
+    "foot_pop_m_s",
+    "pelvis_height_m",
+    "hand_rhythm_hz",
+}
 # heading_error_deg and torso_twist_deg need two leg chains (hip, knee, foot), which the procedural
 # stick figure lacks
 

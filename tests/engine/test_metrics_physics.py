@@ -147,6 +147,36 @@ def test_limb_speed_amplitude_and_jerk_of_known_motion() -> None:
     assert physics.mean_jerk(cubic, FPS) == pytest.approx(6.0)
 
 
+def test_hand_rhythm_is_the_frequency_the_hand_shakes_at() -> None:
+    t = np.arange(61) / FPS  # 60 frame steps: 3 s
+    for freq in (2 / 3, 2.0):  # whole periods
+        clip = standing(61)
+        clip[:, 2, 1] += 0.1 * np.sin(2 * np.pi * freq * t)
+        clip[:, :, 0] += 1.3 * t[:, None]  # walking on at a steady pace changes nothing
+        assert physics.limb_rhythm(clip, [2], 0, FPS) == pytest.approx(freq, abs=1e-6)
+    off_bin = standing(61)
+    off_bin[:, 2, 1] += 0.1 * np.sin(2 * np.pi * 1.75 * t)
+    assert physics.limb_rhythm(off_bin, [2], 0, FPS) == pytest.approx(1.75, abs=0.05)
+    sweep_and_shake = standing(61)  # the same speed in a 2/3 Hz sweep and a 2 Hz shake: equal power
+    sweep_and_shake[:, 2, 1] += 0.3 * np.sin(2 * np.pi * 2 / 3 * t) + 0.1 * np.sin(2 * np.pi * 2.0 * t)
+    power = np.sinc(np.array([2 / 3, 2.0]) / FPS) ** 2  # a frame difference's gain on each speed
+    expected = (power @ [2 / 3, 2.0]) / power.sum()  # about 4/3
+    assert physics.limb_rhythm(sweep_and_shake, [2], 0, FPS) == pytest.approx(expected, abs=1e-6)
+    assert np.isnan(physics.limb_rhythm(standing(61), [2], 0, FPS))  # a still hand has no rhythm
+
+
+def test_real_waves_shake_the_hands_faster_than_raise_ups_lift_them(bandai_dir) -> None:
+    rhythms = {}
+    for action in ("wave-right-hand", "raise-up-right-hand"):
+        paths = sorted((bandai_dir / "data").glob(f"dataset-2_{action}_*_00[12].bvh"))
+        clips = [read_motion(p) for p in paths]
+        row = physics.physics_metrics([c.joints for c in clips], clips[0].skeleton, clips[0].fps)
+        rhythms[action] = row["hand_rhythm_hz"]
+    assert (
+        rhythms["wave-right-hand"] > 1.5 and rhythms["wave-right-hand"] > 1.5 * rhythms["raise-up-right-hand"]
+    )
+
+
 def test_physics_metrics_row() -> None:
     row = physics.physics_metrics([standing(), standing()], skeleton(), FPS)
     assert set(row) == {
