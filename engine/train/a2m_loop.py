@@ -195,7 +195,7 @@ def train_a2m(
     run = data.train(A2mSteps(model, prepared, train_idx, validation), out, config)
     if config.code_dim:
         fit_code_space(model, prepared, train_idx)
-    made = data.provenance(run, config, **({} if warm_start is None else {"warm_start": warm_start.source}))
+    made = data.provenance(run, config, warm_start)
     height = root_height(prepared)
     write_model_folder(
         out, model, config.to_dict(), prepared.skeleton, prepared.action_names, made, height, "a2m"

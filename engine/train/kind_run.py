@@ -139,9 +139,13 @@ class KindRun:
             ranks=o.ranks,
         )
 
-    def provenance(self, run: EpochsRun, config: ModelConfig, **extra: Any) -> dict[str, Any]:
+    def provenance(
+        self, run: EpochsRun, config: ModelConfig, warm_start: WarmStart | None = None, **extra: Any
+    ) -> dict[str, Any]:
         """The model folder's provenance: kind, data, split, seed, budget, device, time and versions
-        (+ ``extra``)."""
+        (+ the ``warm_start``'s source and ``extra``)."""
+        if warm_start is not None:
+            extra["warm_start"] = warm_start.source
         epochs = config.epochs  # type: ignore[attr-defined]
         return {
             "arch": config.ARCH,

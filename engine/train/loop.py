@@ -384,8 +384,7 @@ def train(
     run = data.train(OdmoSteps(model, prepared, data.train_idx, validation, ranks), out, config)
     if not ranks.is_main:
         return data.result(out, config, run, None)
-    started = {} if warm_start is None else {"warm_start": warm_start.source}
-    made = data.provenance(run, config, processes=ranks.world, **started)
+    made = data.provenance(run, config, warm_start, processes=ranks.world)
     save_model(out, model, config, prepared.skeleton, prepared.action_names, made, root_height(prepared))
 
     codes, ends = _encode_all(model, prepared, dev)
