@@ -115,7 +115,9 @@ COLUMNS = (
     ("Under floor →", "floor_penetration", 3),
     ("Floating →", "float_share", 3),
     ("Hand speed (m/s) →", "hand_speed_m_s", 3),
+    ("Hand rhythm (Hz) →", "hand_rhythm_hz", 2),
     ("Jerk (m/s³) →", "jerk_m_s3", 0),
+    ("Pelvis height (m) →", "pelvis_height_m", 2),
     ("Heading (°) →", "heading_error_deg", 1),
     ("Torso twist (°) →", "torso_twist_deg", 1),
     ("Foot sync (r) →", "foot_sync", 2),
@@ -137,7 +139,9 @@ UNCONDITIONAL_COLUMNS = (
     ("Under floor →", "floor_penetration", 3),
     ("Floating →", "float_share", 3),
     ("Hand speed (m/s) →", "hand_speed_m_s", 3),
+    ("Hand rhythm (Hz) →", "hand_rhythm_hz", 2),
     ("Jerk (m/s³) →", "jerk_m_s3", 0),
+    ("Pelvis height (m) →", "pelvis_height_m", 2),
 )
 
 
