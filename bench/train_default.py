@@ -191,6 +191,13 @@ def parse_args() -> argparse.Namespace:
         help="frequencies whose sin and cos of time the pose decoder reads (OdmoConfig.clock_hz)",
     )
     p.add_argument(
+        "--code-rhythms",
+        type=int,
+        default=0,
+        metavar="M",
+        help="rhythms the code sets: sums of the clock's sines (OdmoConfig.code_rhythms)",
+    )
+    p.add_argument(
         "--traj-y-weight",
         type=float,
         default=1.0,
@@ -259,6 +266,7 @@ def main() -> int:
         step_input=args.step_input,
         encoder_reverse=args.encoder_reverse,
         clock_hz=tuple(args.clock_hz),
+        code_rhythms=args.code_rhythms,
         traj_y_weight=args.traj_y_weight,
         **weights,
     )
@@ -442,6 +450,11 @@ def model_switches(config: OdmoConfig) -> str:
     if config.clock_hz:
         hz = ", ".join(f"{f:g}" for f in config.clock_hz)
         parts.append(f"`clock_hz = ({hz})` (the pose decoder reads sin and cos of time at these frequencies)")
+    if config.code_rhythms:
+        parts.append(
+            f"`code_rhythms = {config.code_rhythms}` (the pose decoder also reads that many sums of those "
+            "sines and cosines weighted by the code: rhythms whose phase the code sets)"
+        )
     if config.encoder_reverse:
         parts.append("`encoder_reverse` (the LMP encoder reads each window from its end back to its start)")
     if config.pose_update == "residual":

@@ -33,6 +33,7 @@ MAX_SIZES: Mapping[str, float] = {
     "motion_hidden": 2_048,
     "hidden": 2_048,
     "gen_layers": 16,
+    "code_rhythms": 256,
     "batch_size": 8_192,
     "epoch_size": 10_000_000,
     "epochs": 1_000_000,

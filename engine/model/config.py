@@ -40,6 +40,7 @@ _BEFORE_SWITCHES = {
     "encoder_reverse": False,
     "w_stance": 0.0,
     "clock_hz": (),
+    "code_rhythms": 0,
     "w_rollout": 0.0,
     "step_input": False,
     "w_upper_speed": 0.0,
@@ -145,6 +146,8 @@ class OdmoConfig(ModelConfig):
     ``clock_hz`` feeds the pose decoder sin and cos of each frame's time at these frequencies (Hz): its
     only other inputs are the code, constant over the window, and a ramp, so every rhythm it keeps up
     free-running is one its own state sustains, and measured ones die out (the waves, README).
+    ``code_rhythms`` M adds M inputs, each a sum of those sines and cosines weighted by a linear function
+    of the code: rhythms whose phase and size the code sets (the clock alone is the same in every window).
     ``scheduled_sampling`` says where the non-teacher-forced previous poses come from: "one_step" (a
     teacher-forced pass, the default) or "free_run" (a free-running decode, as the reference's per-step
     loop does; measured worse on the bundled recipe, see the README).
@@ -222,6 +225,7 @@ class OdmoConfig(ModelConfig):
     step_input: bool = False
     encoder_reverse: bool = False
     clock_hz: tuple[float, ...] = ()
+    code_rhythms: int = 0
     arch: str = "odmo"
 
     POSITIVE = ("n_actions", "n_joints", "window", "fps", "latent_dim", "enc_hidden", "enc_fc", "traj_hidden")
@@ -232,7 +236,7 @@ class OdmoConfig(ModelConfig):
     NON_NEGATIVE += ("w_skate", "w_free", "w_speed", "w_spectrum", "w_free_skate", "w_foot_height")
     NON_NEGATIVE += ("w_heading", "w_twist", "w_coordination", "speed_span", "spectrum_span", "free_shift")
     NON_NEGATIVE += ("w_start", "w_stance", "w_rollout", "w_upper_speed", "w_foot_twist", "w_skim")
-    NON_NEGATIVE += ("w_stand",)
+    NON_NEGATIVE += ("w_stand", "code_rhythms")
     RATES = ("tf_start", "tf_end")
     CHOICES: ClassVar[dict[str, tuple[str, ...]]] = {
         "train_precision": TRAIN_PRECISIONS,
@@ -271,6 +275,8 @@ class OdmoConfig(ModelConfig):
             self.clock_hz = tuple(float(f) for f in self.clock_hz)
         except (TypeError, ValueError) as exc:
             raise ConfigError(f"clock_hz must be a list of frequencies in Hz ({exc})") from None
+        if self.code_rhythms and not self.clock_hz:
+            raise ConfigError("code_rhythms are sums of the clock's sines: give clock_hz too")
         if len(self.clock_hz) > MAX_CLOCK_FREQUENCIES:
             raise ConfigError(f"clock_hz holds at most {MAX_CLOCK_FREQUENCIES} frequencies")
         if any(not 0 < f <= self.fps / 2 for f in self.clock_hz):

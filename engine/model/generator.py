@@ -165,9 +165,12 @@ class MotionGenerator(nn.Module):
     decoder does not move stays where it was instead of falling back to a pose of its own. With
     ``clock_hz`` each frame's input also holds sin and cos of 2π·f·t at each frequency f (Hz, t in seconds
     from the window's first frame): rhythms that do not die out however long the decoder runs. With
-    ``step_input`` (``residual`` only) each frame's input also holds the previous frame's step (its pose
-    minus the one before; zero at frame 0), so the decoder reads how each joint moves, not only where
-    it is: a swing it is shown it can continue.
+    ``code_rhythms`` M > 0 (with ``clock_hz``) it also reads M rhythms whose phase and size the code sets:
+    each a sum of those sines and cosines weighted by a linear function of the conditioning (an additive
+    clock is the same for every code, so a wave's phase, which differs from window to window, cannot come
+    from it). With ``step_input`` (``residual`` only) each frame's input also holds the previous frame's
+    step (its pose minus the one before; zero at frame 0), so the decoder reads how each joint moves, not
+    only where it is: a swing it is shown it can continue.
     """
 
     def __init__(
@@ -184,8 +187,11 @@ class MotionGenerator(nn.Module):
         residual: bool = False,
         clock_hz: tuple[float, ...] = (),
         step_input: bool = False,
+        code_rhythms: int = 0,
     ):
         super().__init__()
+        if code_rhythms and not clock_hz:
+            raise ValueError("rhythms the code sets are sums of the clock's sines: they need clock_hz")
         if step_input and not residual:
             raise ValueError("a decoder reads its previous step only when it steps (residual)")
         if rotations and not relative:
@@ -205,12 +211,15 @@ class MotionGenerator(nn.Module):
         self.fps = fps
         self.traj_embed = nn.Sequential(nn.Linear(3, hidden), nn.PReLU())
         self.traj_lstm = nn.LSTM(hidden, hidden, num_layers=2, batch_first=True)
-        extra = 1 + (3 if velocity_input else 0) + 2 * len(clock_hz) + (self.pose_dim if step_input else 0)
+        extra = 1 + (3 if velocity_input else 0) + 2 * len(clock_hz) + code_rhythms
+        extra += self.pose_dim if step_input else 0
         self.embed = nn.Linear(self.pose_dim + cond_dim + extra, hidden)
         self.embed_act = nn.PReLU()
         self.lstm = nn.LSTM(hidden, hidden, num_layers=2, batch_first=True)
         self.out = nn.Linear(hidden, n_joints * 6 if rotations else self.pose_dim)
         self.start = nn.Parameter(torch.zeros(self.pose_dim)) if residual else None
+        self.code_rhythms = code_rhythms
+        self.rhythm = nn.Linear(cond_dim, 2 * len(clock_hz) * code_rhythms) if code_rhythms else None
         self.register_buffer("fk_offsets", torch.zeros(n_joints, 3), persistent=False)
         self.fk_parents: tuple[int, ...] | None = None
         steps = torch.arange(window, dtype=torch.float32) / window
@@ -243,9 +252,10 @@ class MotionGenerator(nn.Module):
     def _context(self, trajectory: Tensor, cond: Tensor) -> tuple[tuple[Tensor, Tensor], Tensor]:
         """Decoder initial state from ``trajectory`` (B, T, 3) and the pose-free input term (B, T, H).
 
-        W·[pose, cond, t/T, v, clock] + b = W_pose·pose + (W_cond·cond + b) + w_t·t/T + W_v·v + W_c·clock:
-        the code term is computed once per sequence, the time and clock terms broadcast over it, and the
-        root velocity term (with ``velocity_input``) added per frame.
+        W·[pose, cond, t/T, v, clock, r] + b = W_pose·pose + (W_cond·cond + b) + w_t·t/T + W_v·v + W_c·clock
+        + W_r·r: the code term is computed once per sequence, the time and clock terms broadcast over it, the
+        root velocity term (with ``velocity_input``) added per frame, and the code's rhythms r (with
+        ``code_rhythms``) are the clock times the code's weights for it, A(cond) (2F, M).
         """
         _, state = self.traj_lstm(self.traj_embed(trajectory))
         weight = self.embed.weight
@@ -257,8 +267,13 @@ class MotionGenerator(nn.Module):
             steps = trajectory.diff(dim=1, prepend=trajectory[:, :1]) * self.fps
             const = const + F.linear(steps, weight[:, at_clock : at_clock + 3])
             at_clock += 3
+        at_rhythm = at_clock + self.clock.shape[-1]
         if self.clock.shape[-1]:
-            const = const + F.linear(self.clock, weight[:, at_clock : at_clock + self.clock.shape[-1]])
+            const = const + F.linear(self.clock, weight[:, at_clock:at_rhythm])
+        if self.rhythm is not None:
+            amplitudes = self.rhythm(cond).unflatten(1, (self.clock.shape[-1], self.code_rhythms))
+            rhythms = torch.einsum("tf,bfm->btm", self.clock[0].to(amplitudes), amplitudes)
+            const = const + F.linear(rhythms, weight[:, at_rhythm : at_rhythm + self.code_rhythms])
         return state, const
 
     def _inputs(self, prev: Tensor, const: Tensor) -> Tensor:

@@ -65,6 +65,7 @@ class OdmoModel(nn.Module):
                 config.pose_update == "residual",
                 config.clock_hz,
                 config.step_input,
+                config.code_rhythms,
             )
             n_feet = len(config.foot_joints) if config.foot_contact else 0
             self.contact = nn.Linear(config.motion_hidden, n_feet) if n_feet else None

@@ -1303,3 +1303,43 @@ def test_the_papers_model_is_one_setting_away() -> None:
         OdmoConfig(n_actions=3, n_joints=11, **PAPER).to_dict()
         | {"foot_joints": (8, 10), "foot_heights": (0.05, 0.05)}
     )
+
+
+def test_code_rhythms_are_the_clock_weighted_by_the_code() -> None:
+    """With ``code_rhythms`` M the pose-free input gains W_r·r, r(t) = Σ_f clock_f(t)·A(cond)_f: a rhythm
+    whose phase the code sets (two codes give rhythms a quarter turn apart when their weights say so);
+    the clocked decoder without it is the same model with its rhythm inputs' weights at zero."""
+    clocked = _model(clock_hz=(1.25,)).eval()
+    rhythmic = _model(clock_hz=(1.25,), code_rhythms=1).eval()
+    state = rhythmic.state_dict()
+    width = clocked.motion_gen.embed.in_features
+    assert rhythmic.motion_gen.embed.in_features == width + 1
+    w_r = torch.zeros(16, 1)
+    w_r[0, 0] = 1.0  # the rhythm drives hidden input 0 alone
+    rhythm = torch.zeros_like(state["motion_gen.rhythm.weight"])  # (2F·M, C·D) = (2, 60)
+    rhythm[0, 0], rhythm[1, 1] = 1.0, 1.0  # sin weighted by code[0], cos by code[1] (action 0's block)
+    weight = torch.cat([clocked.state_dict()["motion_gen.embed.weight"], w_r], 1)
+    rhythmic.load_state_dict(
+        clocked.state_dict()
+        | {
+            "motion_gen.embed.weight": weight,
+            "motion_gen.rhythm.weight": rhythm,
+            "motion_gen.rhythm.bias": torch.zeros(2),
+        }
+    )
+    z = torch.zeros(2, 20)
+    z[0, 0], z[1, 1] = 0.5, 0.5  # a sine and a cosine of the same size
+    action, end = torch.tensor([0, 0]), torch.randn(2, 3)
+    with torch.no_grad():
+        consts = []
+        for model in (clocked, rhythmic):
+            cond = model.condition(z, action)
+            consts.append(model.motion_gen._context(model.traj_gen(cond, end), cond)[1])
+    added = consts[1] - consts[0]
+    angles = 2 * math.pi * 1.25 * torch.arange(T, dtype=torch.float32) / 20.0
+    torch.testing.assert_close(added[0, :, 0], 0.5 * angles.sin(), atol=1e-5, rtol=0)
+    torch.testing.assert_close(added[1, :, 0], 0.5 * angles.cos(), atol=1e-5, rtol=0)
+    assert float(added[:, :, 1:].abs().max()) < 1e-6
+    assert OdmoConfig.from_dict(rhythmic.config.to_dict()).code_rhythms == 1
+    with pytest.raises(ConfigError, match="clock_hz"):
+        OdmoConfig(n_actions=3, n_joints=J, window=T, code_rhythms=4)
