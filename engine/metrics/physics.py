@@ -49,6 +49,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 import numpy as np
+from scipy.signal import periodogram
 
 from engine.motion.contact import ankle_pair, foot_joints, foot_lines, hand_joints, hip_pair, shoulder_pair
 from engine.motion.skeleton import Skeleton
@@ -154,12 +155,10 @@ def limb_rhythm(joints: np.ndarray, limbs: Sequence[int], root: int, fps: float)
     they keep a constant velocity)."""
     pos = np.asarray(joints, dtype=np.float64)
     velocity = np.diff(pos[:, list(limbs)] - pos[:, root : root + 1], axis=0) * fps
-    velocity -= velocity.mean(axis=0)
-    taper = np.hanning(len(velocity) + 1)[:-1, None, None]  # periodic Hann: a whole period stays in its bin
-    power = np.square(np.abs(np.fft.rfft(velocity * taper, axis=0))).sum(axis=(1, 2))[1:]
-    freqs = np.fft.rfftfreq(len(velocity), 1 / fps)[1:]
+    freqs, power = periodogram(velocity, fs=fps, window="hann", detrend="constant", axis=0)
+    power = power.sum(axis=(1, 2))[1:]  # the mean is out: no power at 0 Hz
     total = power.sum()
-    return float(freqs @ power / total) if total > 1e-12 else np.nan
+    return float(freqs[1:] @ power / total) if total > 1e-12 else np.nan
 
 
 def mean_jerk(joints: np.ndarray, fps: float) -> float:
