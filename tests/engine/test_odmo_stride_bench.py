@@ -6,7 +6,14 @@ import numpy as np
 import pytest
 import torch
 
-from bench.odmo_stride import primed_decode, probe_r2, stance_figures, stride_figures, strides
+from bench.odmo_stride import (
+    fitted_codes,
+    primed_decode,
+    probe_r2,
+    stance_figures,
+    stride_figures,
+    strides,
+)
 from engine.model.config import OdmoConfig
 from engine.model.odmo import OdmoModel
 
@@ -88,3 +95,40 @@ def test_stance_figures_read_the_lower_foot_and_the_gap_between_the_feet() -> No
     assert stance_figures(skimming, [1, 2], (0.0, 0.0), (1, 2), 20.0)["stance_m_s"] == pytest.approx(
         1.0, abs=1e-3
     )
+
+
+def test_hand_figures_read_the_rhythm_and_whether_the_hands_follow() -> None:
+    """The hand circles at 5 rad/s (0.80 Hz); a decode whose hand circles the other way round follows
+    on one axis and opposes on the other (r 0), one mirrored through the root opposes (r −1)."""
+    real = _gait(0.6, 0.0, (0.6, 0.8), frames=81)
+    same = stride_figures(real, real, (1, 2), [3], 0, 20.0)
+    assert same["hand_r"] == pytest.approx(1.0)
+    assert same["hand_rhythm_hz"] == pytest.approx(5 / (2 * np.pi), abs=0.05)
+    mirrored = real.copy()
+    mirrored[..., 3, :] = 2 * real[..., 0, :] - real[..., 3, :]
+    assert stride_figures(mirrored, real, (1, 2), [3], 0, 20.0)["hand_r"] == pytest.approx(-1.0)
+    backwards = real.copy()
+    backwards[..., 3, 2] = 2 * real[..., 0, 2] - real[..., 3, 2]  # z mirrored: the circle turns back
+    assert abs(stride_figures(backwards, real, (1, 2), [3], 0, 20.0)["hand_r"]) < 0.05
+
+
+def test_fitted_codes_bring_the_free_decode_closer_and_leave_the_model_as_it_was() -> None:
+    """Fitting codes to decodes of other codes (so a fit exists) cuts the error; the weights stay."""
+    model = OdmoModel(OdmoConfig(n_actions=2, n_joints=4, window=12), seed=3).eval()
+    generator = torch.Generator().manual_seed(0)
+    z, target = torch.randn(3, 20, generator=generator), torch.randn(3, 20, generator=generator)
+    actions, ends = torch.tensor([0, 1, 1]), torch.randn(3, 3, generator=generator)
+    with torch.no_grad():
+        truth = model.decode_full(target, actions, ends).joints
+    before = {k: v.clone() for k, v in model.state_dict().items()}
+
+    def error(codes: torch.Tensor) -> float:
+        with torch.no_grad():
+            joints = model.decode_full(codes, actions, ends).joints
+        about = lambda j: j - j[:, :, :1]  # noqa: E731
+        return float((about(joints) - about(truth)).square().mean())
+
+    fitted = fitted_codes(model, z, actions, ends, truth, steps=50)
+    assert error(fitted) < 0.5 * error(z)
+    assert all(torch.equal(v, model.state_dict()[k]) for k, v in before.items())
+    assert all(p.requires_grad for p in model.parameters())
