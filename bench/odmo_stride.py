@@ -247,7 +247,7 @@ def main() -> int:
         z, e = torch.from_numpy(codes), torch.from_numpy(ends)
         a = torch.full((len(z),), loaded.action_names.index(action))
         truth = torch.from_numpy(real - lift)
-        with torch.inference_mode():
+        with torch.no_grad():
             free = model.decode_full(z, a, e).joints.numpy() + lift
             forced = model.decode_full(z, a, e, prev_truth=truth, tf_rate=1.0).joints.numpy() + lift
             primed = primed_decode(model, z, a, e, truth, args.prime).numpy() + lift
@@ -257,7 +257,7 @@ def main() -> int:
         sets = {"real": real, "free": free, "forced": forced, f"primed_{args.prime}": primed}
         if args.fit:
             fitted = fitted_codes(model, z, a, e, truth, args.fit)
-            with torch.inference_mode():
+            with torch.no_grad():
                 sets["fitted"] = model.decode_full(fitted, a, e).joints.numpy() + lift
         sets = {k: js.reshape(real.shape) for k, js in sets.items()}
         figures = {
