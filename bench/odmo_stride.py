@@ -46,7 +46,7 @@ from engine.metrics.physics import limb_rhythm
 from engine.model.losses import stance_speeds
 from engine.model.odmo import OdmoModel
 from engine.modelio import LoadedModel, load_model
-from engine.motion.contact import hand_joints, hip_pair, leg_chains
+from engine.motion.contact import hand_joints, leg_chains, pelvis_joint
 from engine.motion.datasets import load_folder
 from engine.motion.motion import Motion
 
@@ -235,8 +235,7 @@ def main() -> int:
     if len(ankles) != 2:
         raise SystemExit(f"{args.model}: the skeleton has no two legs to measure a stride on")
     hands, root = hand_joints(loaded.skeleton), loaded.skeleton.root
-    hips = hip_pair(loaded.skeleton)
-    pelvis = root if hips is None else int(loaded.skeleton.parents[hips[0]])
+    pelvis = pelvis_joint(loaded.skeleton)
     stance = lowest_feet(loaded)
     train_clips, test_clips = heldout_split(load_folder(args.data).clips)
     report = {}

@@ -51,7 +51,15 @@ from collections.abc import Sequence
 import numpy as np
 from scipy.signal import periodogram
 
-from engine.motion.contact import ankle_pair, foot_joints, foot_lines, hand_joints, hip_pair, shoulder_pair
+from engine.motion.contact import (
+    ankle_pair,
+    foot_joints,
+    foot_lines,
+    hand_joints,
+    hip_pair,
+    pelvis_joint,
+    shoulder_pair,
+)
 from engine.motion.skeleton import Skeleton
 
 PLANTED_TOL = 0.03
@@ -256,7 +264,7 @@ def physics_metrics(clips: Sequence[np.ndarray], skeleton: Skeleton, fps: float)
     chains, the torso twist from them and two arms; each left out without)."""
     feet, hands, root = foot_joints(skeleton), hand_joints(skeleton), skeleton.root
     hips, shoulders, ankles = hip_pair(skeleton), shoulder_pair(skeleton), ankle_pair(skeleton)
-    pelvis = root if hips is None else int(skeleton.parents[hips[0]])  # a rig's root may stay at the origin
+    pelvis = pelvis_joint(skeleton)
     out = {"bone_length_cv": median_bone_length_cv(clips, skeleton.parents)}
     if feet:
         out["foot_skate_m_s"] = foot_skate(clips, feet, fps)

@@ -57,6 +57,12 @@ def hip_pair(skeleton: Skeleton) -> tuple[int, int] | None:
     return (legs[0][0], legs[1][0]) if len(legs) == 2 else None
 
 
+def pelvis_joint(skeleton: Skeleton) -> int:
+    """The pelvis: the hips' parent (a rig's root may stay at the origin), or the root without two legs."""
+    hips = hip_pair(skeleton)
+    return skeleton.root if hips is None else int(skeleton.parents[hips[0]])
+
+
 def ankle_pair(skeleton: Skeleton) -> tuple[int, int] | None:
     """The two ankles, the top foot joints of the two ``leg_chains`` (None unless the rig has two legs)."""
     legs = leg_chains(skeleton)

@@ -15,6 +15,7 @@ from engine.motion.contact import (
     hand_joints,
     hip_pair,
     leg_chains,
+    pelvis_joint,
     shoulder_pair,
 )
 from engine.motion.formats import read_motion
@@ -47,6 +48,7 @@ def test_joint_lookups_by_name() -> None:
     assert hand_joints(skel) == [2]
     assert leg_chains(skel) == [(3, 4, 5, [6])]
     assert foot_lines(skel) == [(5, 6)]  # the ankle and the toe below it
+    assert pelvis_joint(skel) == 0  # one leg: no pair of hips, so the root
 
 
 def test_a_stretched_bone_has_the_cv_of_its_lengths() -> None:
@@ -379,6 +381,7 @@ def test_real_gaits_alternate_their_feet(bandai_dir) -> None:
     assert [skel.names[j] for j in ankles] == ["Foot_L", "Foot_R"]
     pelvis = int(skel.parents[hip_pair(skel)[0]])
     assert skel.names[pelvis] == "Hips" and skel.root != pelvis  # the rig's root stays at the origin
+    assert pelvis_joint(skel) == pelvis
     syncs = physics.foot_syncs([c.joints for c in clips], ankles, pelvis)
     assert len(clips) == 28 and (syncs < 0).all()
     row = physics.physics_metrics([c.joints for c in clips], skel, clips[0].fps)
