@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import datetime as dt
+import json
 from pathlib import Path
 from typing import Any
 
@@ -276,3 +277,42 @@ def write_model_card(out: Path, report: dict[str, Any], info: dict[str, Any], sm
         ]
         lines.append("")
     atomic_write_text(out / "MODEL_CARD.md", "\n".join(lines))
+
+
+def card_argv(argv: list[str]) -> list[str]:
+    """The command line as the card shows it: the data folder as DATA, the warm start's folder relative to
+    the repository, no --work/--out/--skip-train/--reuse-eval/--no-results (they only say where files go),
+    so no machine paths."""
+    out, skip = [], False
+    for i, token in enumerate(argv):
+        if skip:
+            skip = False
+            continue
+        name = token.split("=", 1)[0]
+        if name in ("--work", "--out"):
+            skip = "=" not in token
+            continue
+        if name in ("--skip-train", "--reuse-eval", "--no-results"):
+            continue
+        if i > 0 and argv[i - 1] == "--data":
+            token = "DATA"
+        elif i > 0 and argv[i - 1] == "--warm-start":
+            token = repo_path(Path(token))
+        elif name == "--data" and "=" in token:
+            token = "--data=DATA"
+        out.append(token)
+    return out
+
+
+TRAINING_COMMAND = "train_command.json"
+
+
+def training_command(script: str, work: Path, argv: list[str], trained: bool) -> str:
+    """The card's training command (``card_argv``): this run's when it ``trained``, recorded in ``work``;
+    a card made later from that folder (``--skip-train``, whose evaluation may take other options such
+    as ``--threads``) shows the recorded one, or this run's where the training recorded none."""
+    record = work / TRAINING_COMMAND
+    if trained:
+        atomic_write_text(record, json.dumps(card_argv(argv)))
+    options = json.loads(record.read_text()) if record.is_file() else card_argv(argv)
+    return " ".join(["python", script, *options])

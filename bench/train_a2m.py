@@ -27,8 +27,7 @@ if __package__ in (None, ""):
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from bench.heldout import HELDOUT_FRACTION, SPLIT_SEED, heldout_split
-from bench.model_card import METRICS, cell, per_action_table, physics_targets, repo_path
-from bench.train_default import card_argv
+from bench.model_card import METRICS, cell, per_action_table, physics_targets, repo_path, training_command
 from bench.warm_start import warm_start_from, warm_start_line
 from engine.fileio import atomic_write_text
 from engine.generators.a2m import load_a2m
@@ -145,7 +144,8 @@ def main() -> int:
     trained = load_a2m(work)
     summary["windows_seen"] = trained.provenance["windows_seen"]
     summary["warm_start"] = trained.provenance.get("warm_start")
-    card = model_card(report, trained.config, summary, sys.argv[1:], len(test_clips), dataset.fingerprint)
+    command = training_command("bench/train_a2m.py", work, sys.argv[1:], trained=not args.skip_train)
+    card = model_card(report, trained.config, summary, command, len(test_clips), dataset.fingerprint)
     atomic_write_text(out / "MODEL_CARD.md", card)
     return 0
 
@@ -154,7 +154,7 @@ def model_card(
     report: dict[str, Any],
     config: A2mConfig,
     summary: dict[str, Any],
-    argv: list[str],
+    command: str,
     n_heldout: int,
     fingerprint: str,
 ) -> str:
@@ -215,7 +215,7 @@ def model_card(
         "",
         "## Training",
         "",
-        f"- Command: `{' '.join(['python', 'bench/train_a2m.py', *card_argv(argv)])}`",
+        f"- Command: `{command}`",
         f"- Budget: {config.epochs} epochs × {config.epoch_size:,} class-balanced windows "
         f"({windows:,} windows, {config.epochs * -(-config.epoch_size // config.batch_size):,} Adam steps of "
         f"batch {config.batch_size}) in {summary['train_seconds'] / 60:.0f} min of CPU training on "

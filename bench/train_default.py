@@ -33,7 +33,7 @@ if __package__ in (None, ""):
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from bench.heldout import HELDOUT_FRACTION, SPLIT_SEED, heldout_split
-from bench.model_card import repo_path, write_model_card
+from bench.model_card import training_command, write_model_card
 from bench.warm_start import warm_start_from
 from engine.fileio import atomic_write_text
 from engine.generate import interpolate
@@ -345,7 +345,7 @@ def main() -> int:
     atomic_write_text(out / "eval.json", json.dumps(shipped, indent=2))  # no machine paths in what ships
     heldout = sorted(str(Path(c.meta["source"]).name) for c in test_clips)
     atomic_write_text(out / "heldout_clips.txt", "\n".join(heldout) + "\n")
-    command = " ".join(["python", "bench/train_default.py", *card_argv(sys.argv[1:])])
+    command = training_command("bench/train_default.py", work, sys.argv[1:], trained=not args.skip_train)
     write_model_card(
         out,
         report,
@@ -386,31 +386,6 @@ def loss_weights(pairs: list[str]) -> dict[str, float]:
             out[name] = float(value)
         except ValueError:
             raise SystemExit(f"--weight {pair}: {value!r} is not a number") from None
-    return out
-
-
-def card_argv(argv: list[str]) -> list[str]:
-    """The command line as the card shows it: the data folder as DATA, the warm start's folder relative to
-    the repository, no --work/--out/--skip-train/--reuse-eval/--no-results (they only say where files go),
-    so no machine paths."""
-    out, skip = [], False
-    for i, token in enumerate(argv):
-        if skip:
-            skip = False
-            continue
-        name = token.split("=", 1)[0]
-        if name in ("--work", "--out"):
-            skip = "=" not in token
-            continue
-        if name in ("--skip-train", "--reuse-eval", "--no-results"):
-            continue
-        if i > 0 and argv[i - 1] == "--data":
-            token = "DATA"
-        elif i > 0 and argv[i - 1] == "--warm-start":
-            token = repo_path(Path(token))
-        elif name == "--data" and "=" in token:
-            token = "--data=DATA"
-        out.append(token)
     return out
 
 
@@ -514,6 +489,7 @@ def model_switches(config: OdmoConfig) -> str:
         "a loss on how far that decode's planted-foot speed, by the skate rule made soft, exceeds the data's",
     )
     parts += _weighted(config, "w_stand", "a loss on that decode's root height over its lowest foot")
+    parts += _weighted(config, "w_floor", "a loss on that decode's lowest-foot heights over the data's floor")
     parts += _weighted(config, "w_foot_height", "a loss on that decode's sorted foot heights")
     parts += _weighted(config, "w_stance", "a loss on the speed of that decode's lowest foot")
     parts += _weighted(config, "w_heading", "a loss on that decode's heading against its path")

@@ -31,8 +31,14 @@ if __package__ in (None, ""):
 
 from bench._report import replace_section
 from bench.heldout import HELDOUT_FRACTION, SPLIT_SEED, heldout_split
-from bench.model_card import licence_lines, metric_table, per_action_table, physics_targets, repo_path
-from bench.train_default import card_argv
+from bench.model_card import (
+    licence_lines,
+    metric_table,
+    per_action_table,
+    physics_targets,
+    repo_path,
+    training_command,
+)
 from engine.errors import ConfigError
 from engine.fileio import atomic_write_text
 from engine.generators import SampleRequest, open_generator
@@ -127,7 +133,8 @@ def main() -> int:
     )
     report = report | {"meta": report["meta"] | {"model": out.name, "classifier": repo_path(args.classifier)}}
     atomic_write_text(out / "eval.json", json.dumps(report, indent=2))
-    atomic_write_text(out / "MODEL_CARD.md", model_card(report, generator, sys.argv[1:], len(held)))
+    command = training_command("bench/train_dvgan.py", args.work, sys.argv[1:], trained=not args.skip_train)
+    atomic_write_text(out / "MODEL_CARD.md", model_card(report, generator, command, len(held)))
     if not args.no_results:
         anchors = ("## Unconditional: MoDi", "## How it was made")
         replace_section(RESULTS, SECTION, "\n".join(results_section(report)), before=anchors)
@@ -246,7 +253,7 @@ def phrase_lines(report: dict[str, Any]) -> list[str]:
     return lines
 
 
-def model_card(report: dict[str, Any], generator: DvganGenerator, argv: list[str], n_held: int) -> str:
+def model_card(report: dict[str, Any], generator: DvganGenerator, command: str, n_held: int) -> str:
     """MODEL_CARD.md from the evaluation report and the model's provenance; never typed by hand."""
     config: DvganConfig = generator.loaded.config
     made = generator.loaded.provenance
@@ -305,7 +312,7 @@ def model_card(report: dict[str, Any], generator: DvganGenerator, argv: list[str
         "",
         "## Training",
         "",
-        f"- Command: `{' '.join(['python', 'bench/train_dvgan.py', *card_argv(argv)])}`",
+        f"- Command: `{command}`",
         f"- Budget: {made['epochs']} epochs, {made.get('steps', 0):,} generator updates of batch "
         f"{config.batch_size} with {config.critic_steps} critic updates each, "
         f"{made['train_seconds'] / 3600:.2f} h on the CPU ({platform.processor() or platform.machine()}, "

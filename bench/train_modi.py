@@ -29,8 +29,15 @@ if __package__ in (None, ""):
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from bench.heldout import HELDOUT_FRACTION, SPLIT_SEED, heldout_split
-from bench.model_card import METRICS, cell, licence_lines, per_action_table, physics_targets, repo_path
-from bench.train_default import card_argv
+from bench.model_card import (
+    METRICS,
+    cell,
+    licence_lines,
+    per_action_table,
+    physics_targets,
+    repo_path,
+    training_command,
+)
 from engine.fileio import atomic_write_text
 from engine.generators import open_generator
 from engine.generators.modi import ModiGenerator
@@ -154,9 +161,8 @@ def main() -> int:
     atomic_write_text(out / "eval.json", json.dumps(report | {"meta": meta}, indent=2))
     edits_path = out / "edits.json"
     edits = json.loads(edits_path.read_text()) if edits_path.is_file() else None
-    card = model_card(
-        report, generator, summary, sys.argv[1:], held, prepared.fingerprint(), args.split, edits
-    )
+    command = training_command("bench/train_modi.py", work, sys.argv[1:], trained=not args.skip_train)
+    card = model_card(report, generator, summary, command, held, prepared.fingerprint(), args.split, edits)
     atomic_write_text(out / "MODEL_CARD.md", card)
     return 0
 
@@ -189,7 +195,7 @@ def model_card(
     report: dict[str, Any],
     generator: ModiGenerator,
     summary: dict[str, Any],
-    argv: list[str],
+    command: str,
     held: list[Motion],
     fingerprint: str,
     split: str,
@@ -268,7 +274,7 @@ def model_card(
         "",
         "## Training",
         "",
-        f"- Command: `{' '.join(['python', 'bench/train_modi.py', *card_argv(argv)])}`",
+        f"- Command: `{command}`",
         f"- Budget: {provenance['epochs']} epochs, {steps:,} steps of batch {config.batch_size} "
         f"({provenance.get('windows_seen', 0):,} windows) in {summary['train_seconds'] / 3600:.1f} h of CPU "
         f"training on {summary['torch_threads']} torch thread ({platform.processor() or platform.machine()}, "

@@ -47,6 +47,7 @@ _BEFORE_SWITCHES = {
     "w_foot_twist": 0.0,
     "w_skim": 0.0,
     "w_stand": 0.0,
+    "w_floor": 0.0,
 }
 SCHEDULED_SAMPLING = ("one_step", "free_run")
 #: The paper's model in one setting, ``OdmoConfig(n_actions, n_joints, **PAPER)``: every project change off.
@@ -122,7 +123,9 @@ class OdmoConfig(ModelConfig):
     floor while they swing (the free-skate term's contacts are thresholded, so it cannot lift them).
     ``w_stand`` weights the squared error of that decode's mean root height over its lowest foot joint
     against the data's (legs drawn up under the body, which every term on heights over the window's own
-    floor lets pass and the clean-up lowers onto the floor crouched).
+    floor lets pass and the clean-up lowers onto the floor crouched), ``w_floor`` the squared error of
+    that decode's sorted per-frame lowest-foot heights over the data's floor (feet lifted together, which
+    the clean-up cannot lower without lowering the whole clip).
     ``spectrum_legs`` False leaves the legs out of the spectrum term. ``root_velocity_input`` feeds the
     pose decoder each frame's root velocity from the generated trajectory (the paper's decoder sees the
     trajectory only through its initial state, so it cannot tell how far the root moves at each frame
@@ -212,6 +215,7 @@ class OdmoConfig(ModelConfig):
     w_foot_height: float = 0.0
     w_skim: float = 0.0
     w_stand: float = 0.0
+    w_floor: float = 0.0
     w_stance: float = 0.0
     w_heading: float = 0.0
     w_twist: float = 0.0
@@ -236,7 +240,7 @@ class OdmoConfig(ModelConfig):
     NON_NEGATIVE += ("w_skate", "w_free", "w_speed", "w_spectrum", "w_free_skate", "w_foot_height")
     NON_NEGATIVE += ("w_heading", "w_twist", "w_coordination", "speed_span", "spectrum_span", "free_shift")
     NON_NEGATIVE += ("w_start", "w_stance", "w_rollout", "w_upper_speed", "w_foot_twist", "w_skim")
-    NON_NEGATIVE += ("w_stand", "code_rhythms")
+    NON_NEGATIVE += ("w_stand", "w_floor", "code_rhythms")
     RATES = ("tf_start", "tf_end")
     CHOICES: ClassVar[dict[str, tuple[str, ...]]] = {
         "train_precision": TRAIN_PRECISIONS,

@@ -38,6 +38,7 @@ LOSS_TERMS = (
     "foot_twist",
     "skim",
     "stand",
+    "floor",
 )
 STANCE_TAU = 0.01  # metres: how much lower a foot joint must be than another to take the weight
 SKIM_TAU = 0.01  # metres: how softly a foot joint passes out of the skate rule's planted band
@@ -403,6 +404,24 @@ def stand_loss(pred: Tensor, target: Tensor, root: int, feet: Sequence[int], mas
     return (stand_heights(pred, root, feet, mask) - stand_heights(target, root, feet, mask)).square().mean()
 
 
+def floor_heights(feet: Tensor, rest_heights: Sequence[float], mask: Tensor) -> Tensor:
+    """(B, T) height of the lowest foot joint over its resting height in each frame of ``feet`` (B, T, F, 3),
+    in the window's own frame (where the data's floor is the same for a decode and its real window)."""
+    return (feet[..., 1] - feet.new_tensor(list(rest_heights))).amin(dim=-1)
+
+
+def floor_loss(pred: Tensor, target: Tensor, rest_heights: Sequence[float], mask: Tensor) -> Tensor:
+    """Squared error (m²) of the sorted ``floor_heights`` of ``pred`` against ``target`` (B, T, F, 3): how
+    long the lowest foot spends at each height over the data's floor, whatever the phase; a decode whose
+    feet leave the floor together, or stand on a floor of their own, pays for it (every other foot term
+    reads heights over the window's own lowest point). Padded frames sort last in both and cost nothing."""
+    pad = ~mask.bool()
+    pred_h = floor_heights(pred, rest_heights, mask).masked_fill(pad, 1e3).sort(dim=1).values
+    real_h = floor_heights(target, rest_heights, mask).masked_fill(pad, 1e3).sort(dim=1).values
+    m = mask.to(pred.dtype).sort(dim=1, descending=True).values
+    return ((pred_h - real_h).square() * m).sum() / m.sum().clamp(min=1.0)
+
+
 def _heading_cosines(joints: Tensor, hips: tuple[int, int], span: int) -> tuple[Tensor, Tensor]:
     """Cosines (B, S) between the hips' axis at each span's middle and the horizontal travel of the
     hips' midpoint over ``span`` frames, and that travel (m)."""
@@ -539,6 +558,7 @@ def odmo_losses(
         "foot_twist": zero,
         "skim": zero,
         "stand": zero,
+        "floor": zero,
     }
     twist_on = free_joints is not None and hips is not None and shoulders is not None
     foot_twist_on = free_joints is not None and hips is not None and len(feet) > 0
@@ -579,6 +599,7 @@ def odmo_losses(
             terms["free_skate"] = skate_loss(free_feet, contacts, mask, config.fps)
             terms["skim"] = skim_loss(free_feet, joints[:, :, feet], mask, config.fps)
             terms["stand"] = stand_loss(free_joints, joints, root, feet, mask)
+            terms["floor"] = floor_loss(free_feet, joints[:, :, feet], rest, mask)
     if rollout is not None:
         start, rolled = rollout
         span = slice(start, start + rolled.shape[1])
@@ -610,6 +631,7 @@ def odmo_losses(
         "foot_twist": config.w_foot_twist if foot_twist_on else 0.0,
         "skim": config.w_skim if free_feet_on else 0.0,
         "stand": config.w_stand if free_feet_on else 0.0,
+        "floor": config.w_floor if free_feet_on else 0.0,
     }
     terms["total"] = sum(weights[k] * terms[k] for k in LOSS_TERMS if weights[k] > 0)
     return terms

@@ -119,6 +119,7 @@ def _forward(
         "w_upper_speed",
         "w_skim",
         "w_stand",
+        "w_floor",
     )
     if any(getattr(config, name) > 0 for name in free_terms):
         free = out.joints if truth is None else model.decode_full(z, data.actions, end).joints

@@ -23,6 +23,8 @@ from engine.model.losses import (
     amplitude_spectra,
     contrastive_loss,
     coordination_loss,
+    floor_heights,
+    floor_loss,
     foot_height_loss,
     heading_loss,
     masked_mse,
@@ -969,6 +971,44 @@ def test_the_stand_term_sees_legs_drawn_up_wherever_the_floor_is() -> None:
     padded[0, 10:] = False
     tucked[0, 10:, 0, 1] = 9.0  # padded frames cost nothing
     assert float(stand_heights(tucked, 0, (1, 2), padded)) == pytest.approx(0.5)
+
+
+def test_the_floor_term_sees_feet_lifted_together_and_a_floor_of_their_own() -> None:
+    """The sorted per-frame height of the lowest foot over its resting height, against the data's in the
+    same frame: alternating feet out of phase cost nothing, both lifted together or the whole body raised
+    cost the squared lift (m²); the loss reaches the total through ``w_floor``."""
+    mask = torch.ones(1, 20, dtype=torch.bool)
+    rest = (0.05, 0.05)
+    walk = torch.zeros(1, 20, 2, 3)
+    walk[..., 1] = 0.05
+    walk[0, ::2, 0, 1] += 0.1  # each foot lifts 10 cm in turn: one is always down
+    walk[0, 1::2, 1, 1] += 0.1
+    assert floor_heights(walk, rest, mask).abs().max() < 1e-7
+    late = walk.roll(1, dims=1)  # the same steps a frame later
+    assert float(floor_loss(late, walk, rest, mask)) == pytest.approx(0.0, abs=1e-12)
+    hop = walk.clone()
+    hop[0, :10, :, 1] += 0.2  # both feet 20 cm up together for half the window
+    assert float(floor_loss(hop, walk, rest, mask)) == pytest.approx(0.5 * 0.04, rel=1e-5)
+    raised = walk + torch.tensor([0.0, 0.3, 0.0])
+    assert float(floor_loss(raised, walk, rest, mask)) == pytest.approx(0.09, rel=1e-5)
+    padded = mask.clone()
+    padded[0, 10:] = False
+    assert float(floor_loss(hop, walk, rest, padded)) == pytest.approx(0.04, rel=1e-5)
+    joints = torch.zeros(1, 20, 3, 3)
+    joints[:, :, 1:] = walk
+    joints[:, :, 0, 1] = 0.9
+    lifted = joints.clone()
+    lifted[:, :, 1:] = hop
+    joints, lifted = joints.repeat(2, 1, 1, 1), lifted.repeat(2, 1, 1, 1)  # an anchor and its partner
+    kw = {"joints": joints, "trajectory": joints[:, :, 0], "mask": mask.repeat(2, 1), "pred_joints": joints}
+    kw |= {"pred_trajectory": joints[:, :, 0], "mu": torch.zeros(2, 4), "logvar": torch.zeros(2, 4)}
+    kw |= {"same": torch.tensor([True]), "root": 0, "free_joints": lifted}
+    kw |= {"contact_logits": torch.zeros(2, 20, 2), "contacts": torch.zeros(2, 20, 2)}
+    cfg = OdmoConfig(n_actions=2, n_joints=3, foot_joints=(1, 2), foot_heights=rest, w_floor=2.0)
+    losses = odmo_losses(cfg, **kw)
+    assert float(losses["floor"]) == pytest.approx(0.02, rel=1e-5)
+    without = odmo_losses(dataclasses.replace(cfg, w_floor=0.0), **kw)
+    assert float(losses["total"] - without["total"]) == pytest.approx(0.04, rel=1e-4)
 
 
 @pytest.mark.parametrize("update", ["absolute", "residual", "stepped"])

@@ -5,7 +5,8 @@ from __future__ import annotations
 import re
 from pathlib import Path
 
-from bench.train_default import card_argv, model_switches
+from bench.model_card import card_argv, training_command
+from bench.train_default import model_switches
 from engine.model.config import PAPER, OdmoConfig
 
 
@@ -43,3 +44,19 @@ def test_the_card_command_names_a_warm_start_by_its_place_in_the_repository() ->
         "w_skim=1",
     ]
     assert card_argv(["--warm-start", "/elsewhere/runs/stage1"]) == ["--warm-start", "stage1"]
+
+
+def test_a_card_made_later_from_a_trained_folder_shows_the_training_command(tmp_path: Path) -> None:
+    """A --skip-train card evaluated on other options (here one thread where training took two) shows the
+    command the training recorded; a folder whose training recorded none shows this run's."""
+    trained = ["--data", "/home/me/bandai", "--work", str(tmp_path), "--epochs", "100", "--threads", "2"]
+    expected = "python bench/train_dvgan.py --data DATA --epochs 100 --threads 2"
+    assert training_command("bench/train_dvgan.py", tmp_path, trained, trained=True) == expected
+    later = ["--data", "/mnt/other", "--work", str(tmp_path), "--skip-train", "--threads", "1"]
+    assert training_command("bench/train_dvgan.py", tmp_path, later, trained=False) == expected
+    fresh = tmp_path / "older"
+    fresh.mkdir()
+    assert (
+        training_command("bench/x.py", fresh, later, trained=False)
+        == "python bench/x.py --data DATA --threads 1"
+    )
