@@ -404,7 +404,7 @@ def stand_loss(pred: Tensor, target: Tensor, root: int, feet: Sequence[int], mas
     return (stand_heights(pred, root, feet, mask) - stand_heights(target, root, feet, mask)).square().mean()
 
 
-def floor_heights(feet: Tensor, rest_heights: Sequence[float], mask: Tensor) -> Tensor:
+def floor_heights(feet: Tensor, rest_heights: Sequence[float]) -> Tensor:
     """(B, T) height of the lowest foot joint over its resting height in each frame of ``feet`` (B, T, F, 3),
     in the window's own frame (where the data's floor is the same for a decode and its real window)."""
     return (feet[..., 1] - feet.new_tensor(list(rest_heights))).amin(dim=-1)
@@ -416,8 +416,8 @@ def floor_loss(pred: Tensor, target: Tensor, rest_heights: Sequence[float], mask
     feet leave the floor together, or stand on a floor of their own, pays for it (every other foot term
     reads heights over the window's own lowest point). Padded frames sort last in both and cost nothing."""
     pad = ~mask.bool()
-    pred_h = floor_heights(pred, rest_heights, mask).masked_fill(pad, 1e3).sort(dim=1).values
-    real_h = floor_heights(target, rest_heights, mask).masked_fill(pad, 1e3).sort(dim=1).values
+    pred_h = floor_heights(pred, rest_heights).masked_fill(pad, 1e3).sort(dim=1).values
+    real_h = floor_heights(target, rest_heights).masked_fill(pad, 1e3).sort(dim=1).values
     m = mask.to(pred.dtype).sort(dim=1, descending=True).values
     return ((pred_h - real_h).square() * m).sum() / m.sum().clamp(min=1.0)
 
