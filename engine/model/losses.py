@@ -360,11 +360,20 @@ def foot_height_loss(pred: Tensor, target: Tensor, rest_heights: Sequence[float]
     """Squared error (m²) of each foot joint's sorted heights over its window's floor in ``pred`` against
     ``target`` (B, T, F, 3): how long each foot spends at each height, whatever the phase, so feet
     neither float nor skim where the data's step. Padded frames sort last in both and cost nothing."""
-    pad = ~mask.unsqueeze(-1)
-    pred_h = _above_floor(pred, rest_heights, mask).masked_fill(pad, 1e3).sort(dim=1).values
-    real_h = _above_floor(target, rest_heights, mask).masked_fill(pad, 1e3).sort(dim=1).values
-    m = mask.to(pred.dtype).sort(dim=1, descending=True).values.unsqueeze(-1).expand_as(pred_h)
-    return ((pred_h - real_h).square() * m).sum() / m.sum().clamp(min=1.0)
+    pred_h, real_h = _above_floor(pred, rest_heights, mask), _above_floor(target, rest_heights, mask)
+    return _sorted_error(pred_h, real_h, mask)
+
+
+def _sorted_error(pred_h: Tensor, real_h: Tensor, mask: Tensor) -> Tensor:
+    """Squared error of heights (B, T, …) each sorted over time, ``pred_h`` against ``real_h``: how long
+    each spends at each height, whatever the phase; padded frames (``mask`` (B, T) False) sort last in both
+    and cost nothing."""
+    shape = (*mask.shape, *(1,) * (pred_h.dim() - 2))
+    pad = ~mask.bool().view(shape)
+    pred_s = pred_h.masked_fill(pad, 1e3).sort(dim=1).values
+    real_s = real_h.masked_fill(pad, 1e3).sort(dim=1).values
+    m = mask.to(pred_h.dtype).sort(dim=1, descending=True).values.view(shape).expand_as(pred_s)
+    return ((pred_s - real_s).square() * m).sum() / m.sum().clamp(min=1.0)
 
 
 def skim_speeds(feet: Tensor, mask: Tensor, fps: float) -> Tensor:
@@ -415,11 +424,7 @@ def floor_loss(pred: Tensor, target: Tensor, rest_heights: Sequence[float], mask
     long the lowest foot spends at each height over the data's floor, whatever the phase; a decode whose
     feet leave the floor together, or stand on a floor of their own, pays for it (every other foot term
     reads heights over the window's own lowest point). Padded frames sort last in both and cost nothing."""
-    pad = ~mask.bool()
-    pred_h = floor_heights(pred, rest_heights).masked_fill(pad, 1e3).sort(dim=1).values
-    real_h = floor_heights(target, rest_heights).masked_fill(pad, 1e3).sort(dim=1).values
-    m = mask.to(pred.dtype).sort(dim=1, descending=True).values
-    return ((pred_h - real_h).square() * m).sum() / m.sum().clamp(min=1.0)
+    return _sorted_error(floor_heights(pred, rest_heights), floor_heights(target, rest_heights), mask)
 
 
 def _heading_cosines(joints: Tensor, hips: tuple[int, int], span: int) -> tuple[Tensor, Tensor]:
