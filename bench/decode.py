@@ -297,7 +297,7 @@ def _kinematics(skeleton: Skeleton, config: OdmoConfig, rng: np.random.Generator
                     forward_kinematics(rotation_6d_to_matrix(d), offsets, skeleton.parents, r)
                 ),
                 "foot clean-up (plant_feet, half the foot frames planted)": lambda p=positions, c=contact: (
-                    plant_feet(p, c, skeleton, feet, config.foot_heights)
+                    plant_feet(p, c, skeleton, feet, config.foot_heights, fps=config.fps)
                 ),
             }
             for name, fn in stages.items():

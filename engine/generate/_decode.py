@@ -97,7 +97,8 @@ def plant(loaded: LoadedModel, joints: np.ndarray, contact: np.ndarray | None) -
     config = loaded.config
     if contact is None or not (config.foot_contact and config.foot_joints and config.foot_heights):
         return joints
-    return plant_feet(joints, contact > 0.0, loaded.skeleton, config.foot_joints, config.foot_heights)
+    feet, heights = config.foot_joints, config.foot_heights
+    return plant_feet(joints, contact > 0.0, loaded.skeleton, feet, heights, fps=loaded.fps)
 
 
 def decode_tensors(

@@ -196,7 +196,8 @@ class DvganGenerator(FolderGenerator):
         contacts = np.stack([p[1] for p in placed])
         heights = self.loaded.config.foot_heights
         if heights:
-            joints = plant_feet(joints, contacts > 0.5, skeleton, foot_joints(skeleton), heights)
+            feet = foot_joints(skeleton)
+            joints = plant_feet(joints, contacts > 0.5, skeleton, feet, heights, fps=self.fps)
         meta = meta | {"action": action, "model": str(self.path), "kind": self.kind}
         return [
             Motion(j, self.fps, skeleton, action=action, meta=meta | {"index": i})

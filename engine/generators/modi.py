@@ -85,7 +85,7 @@ def display_joints(loaded: LoadedModi, joints: np.ndarray, contacts: np.ndarray)
     if not heights:
         return lifted
     feet = foot_joints(loaded.skeleton)
-    return plant_feet(lifted, contacts > 0.5, loaded.skeleton, feet, heights)
+    return plant_feet(lifted, contacts > 0.5, loaded.skeleton, feet, heights, fps=loaded.fps)
 
 
 def decode_display(loaded: LoadedModi, codes: np.ndarray, psi: float = 1.0) -> np.ndarray:

@@ -53,6 +53,7 @@ from scipy.signal import periodogram
 
 from engine.motion.contact import (
     ankle_pair,
+    floats,
     foot_joints,
     foot_lines,
     hand_joints,
@@ -64,8 +65,6 @@ from engine.motion.skeleton import Skeleton
 
 PLANTED_TOL = 0.03
 PENETRATION_TOL = 0.02
-FLOAT_HEIGHT = 0.10
-FLOAT_SECONDS = 0.5
 HEADING_SPAN = 0.5
 MOVING_SPEED = 0.5
 LATE_SHARE = 1 / 3
@@ -125,18 +124,6 @@ def floor_penetration(clips: Sequence[np.ndarray], feet: Sequence[int]) -> tuple
     point's depth under the floor (m, 0 when nothing is below it)."""
     lowest = np.concatenate([np.asarray(c)[:, list(feet), 1].min(axis=1) for c in clips])
     return float(np.mean(lowest < -PENETRATION_TOL)), float(max(0.0, -lowest.min()))
-
-
-def floats(joints: np.ndarray, feet: Sequence[int], fps: float) -> bool:
-    """Whether every foot joint stays more than 10 cm above the floor for 0.5 s or more in a row."""
-    up = np.asarray(joints)[:, list(feet), 1].min(axis=1) > FLOAT_HEIGHT
-    need = max(1, int(np.ceil(FLOAT_SECONDS * fps - 1e-9)))
-    run = 0
-    for flag in up:
-        run = run + 1 if flag else 0
-        if run >= need:
-            return True
-    return False
 
 
 def float_share(clips: Sequence[np.ndarray], feet: Sequence[int], fps: float) -> float:

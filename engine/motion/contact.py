@@ -8,6 +8,7 @@ reaches in the data, floor at y = 0) and its speed is under ``speed_tol`` (0.5 m
 from __future__ import annotations
 
 import re
+from collections.abc import Sequence
 
 import numpy as np
 
@@ -17,6 +18,8 @@ _FOOT = re.compile(r"foot|toe|ankle", re.IGNORECASE)
 _HAND = re.compile(r"hand|wrist", re.IGNORECASE)
 HEIGHT_TOL = 0.03
 SPEED_TOL = 0.5
+FLOAT_HEIGHT = 0.10
+FLOAT_SECONDS = 0.5
 
 
 def foot_joints(skeleton: Skeleton) -> list[int]:
@@ -126,3 +129,15 @@ def contact_labels(
     speed = np.concatenate([step[..., :1, :], step], axis=-2)
     speed = np.minimum(speed, np.concatenate([step, step[..., -1:, :]], axis=-2))
     return low & (speed < speed_tol)
+
+
+def floats(joints: np.ndarray, feet: Sequence[int], fps: float) -> bool:
+    """Whether every foot joint stays more than 10 cm above the floor for 0.5 s or more in a row."""
+    up = np.asarray(joints)[:, list(feet), 1].min(axis=1) > FLOAT_HEIGHT
+    need = max(1, int(np.ceil(FLOAT_SECONDS * fps - 1e-9)))
+    run = 0
+    for flag in up:
+        run = run + 1 if flag else 0
+        if run >= need:
+            return True
+    return False

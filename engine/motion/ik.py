@@ -24,7 +24,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from engine.errors import ConfigError
-from engine.motion.contact import leg_chains
+from engine.motion.contact import floats, leg_chains
 from engine.motion.motion import Motion
 from engine.motion.skeleton import Skeleton
 
@@ -138,18 +138,33 @@ def _kabsch(rest: np.ndarray, seen: np.ndarray, weights: np.ndarray) -> Rotation
     return Rotation.from_quat(quats)
 
 
-def lower_to_floor(joints: np.ndarray, feet: Sequence[int], heights: Sequence[float]) -> np.ndarray:
+def lower_to_floor(
+    joints: np.ndarray,
+    feet: Sequence[int],
+    heights: Sequence[float],
+    contact: np.ndarray | None = None,
+    fps: float | None = None,
+) -> np.ndarray:
     """Joints (B, T, J, 3), floor y = 0, each clip moved down rigidly until the foot joint that comes
     nearest its resting height (``heights`` (F,) of ``feet``) in any frame reaches it; a clip whose feet
-    reach the floor somewhere is left as it is. A model that places the first root frame at a fixed
-    height gives a clip in a crouching gait (a walk, a run) feet that never come down."""
+    reach the floor somewhere is left as it is. Given the model's ``contact`` (B, T, F) and ``fps``, a
+    clip whose feet then still float (``floats``) is lowered further by the median height over rest of
+    its foot joints in their predicted-contact frames (a gait that skips a step keeps both feet up
+    between the frames where they touch). A model that places the first root frame at a fixed height
+    gives a clip in a crouching gait (a walk, a run) feet that never come down."""
     out = np.asarray(joints)
     above = out[..., list(feet), 1] - np.asarray(heights, dtype=out.dtype)  # (B, T, F)
-    margin = np.maximum(above.min(axis=(1, 2)), 0.0)
-    if not margin.any():
+    drop = np.maximum(above.min(axis=(1, 2)), 0.0)
+    if contact is not None and fps is not None:
+        planted = np.asarray(contact, bool)
+        for b in range(len(out)):
+            lowered = out[b] - np.array([0.0, drop[b], 0.0], dtype=out.dtype)
+            if planted[b].any() and floats(lowered, feet, fps):
+                drop[b] = max(drop[b], float(np.median(above[b][planted[b]])))
+    if not drop.any():
         return out
     out = out.copy()
-    out[..., 1] -= margin[:, None, None].astype(out.dtype)
+    out[..., 1] -= drop[:, None, None].astype(out.dtype)
     return out
 
 
@@ -162,26 +177,27 @@ def plant_feet(
     ramp: int = PLANT_RAMP,
     reach: float = PLANT_REACH,
     ground: bool = True,
+    fps: float | None = None,
 ) -> np.ndarray:
     """Joints (B, T, J, 3), floor y = 0, with planted feet pinned and no foot under its resting height.
 
     With ``ground`` a clip whose feet never come down to the floor is first lowered onto it
-    (``lower_to_floor``). Per leg (``leg_chains``): while its lowest-resting foot joint (the toe) is
-    planted (``contact`` (B, T, F) over ``feet``, resting ``heights`` (F,); breaks of up to
-    ``PLANT_BRIDGE`` frames filled), that joint keeps the mean floor position of the contact and sits at
-    its resting height. It is held no more than ``reach`` metres along the floor from where it was
-    decoded, nor further than the leg reaches from its hip (plus ``PLANT_SLACK``): a foot decoded
-    sliding further is dragged rather than torn from the leg or lifted off the floor. The shift fades out
-    over ``ramp`` frames either side, and passes linearly from one contact's shift to the next across a
-    shorter gap, so pinning never makes a foot jump. Any frame whose foot joints dip under their resting
-    heights is lifted to them. The foot moves rigidly and the knee is re-solved by two-bone IK (hip fixed,
-    bone lengths kept; a target out of reach is approached along the hip-to-target line), so the pose
-    stays one a BVH holds exactly.
+    (``lower_to_floor``; by its predicted contacts where it floats, when ``fps`` is given). Per leg
+    (``leg_chains``): while its lowest-resting foot joint (the toe) is planted (``contact`` (B, T, F) over
+    ``feet``, resting ``heights`` (F,); breaks of up to ``PLANT_BRIDGE`` frames filled), that joint keeps
+    the mean floor position of the contact and sits at its resting height. It is held no more than
+    ``reach`` metres along the floor from where it was decoded, nor further than the leg reaches from its
+    hip (plus ``PLANT_SLACK``): a foot decoded sliding further is dragged rather than torn from the leg or
+    lifted off the floor. The shift fades out over ``ramp`` frames either side, and passes linearly from
+    one contact's shift to the next across a shorter gap, so pinning never makes a foot jump. Any frame
+    whose foot joints dip under their resting heights is lifted to them. The foot moves rigidly and the
+    knee is re-solved by two-bone IK (hip fixed, bone lengths kept; a target out of reach is approached
+    along the hip-to-target line), so the pose stays one a BVH holds exactly.
     """
     out = np.array(joints, dtype=np.float64, copy=True)
     feet, heights = list(feet), np.asarray(heights, dtype=np.float64)
     if ground:
-        out = lower_to_floor(out, feet, heights)
+        out = lower_to_floor(out, feet, heights, contact, fps)
     planted = np.asarray(contact, bool)
     for hip, knee, ankle, below in leg_chains(skeleton):
         leg = [ankle, *below]

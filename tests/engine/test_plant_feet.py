@@ -152,6 +152,32 @@ def test_a_clip_whose_feet_never_come_down_is_lowered_onto_the_floor() -> None:
     np.testing.assert_allclose(plant_feet(batch, none, skeleton(), FEET, HEIGHTS, ground=False), batch)
 
 
+def test_a_floating_clip_is_lowered_by_its_predicted_contacts_and_a_jump_or_a_step_is_not() -> None:
+    """Three clips whose toes touch the floor somewhere (so the lowest-foot rule leaves them): a skipping
+    gait that then stays 15 cm up while the model says its toe is planted, a jump (30 cm up for a second,
+    planted only on the floor), and a shuffle 5 cm up (never 10 cm: it does not float)."""
+    t = 40
+    skip, jump, shuffle = standing(), standing(), standing()
+    skip[3:, :, 1] += 0.15
+    jump[10:31, :, 1] += 0.30
+    shuffle[1:, :, 1] += 0.05
+    batch = np.stack([skip, jump, shuffle])
+    contact = np.zeros((3, t, 2), bool)
+    contact[0, :3, 1] = contact[0, 20:35, 1] = True  # 3 frames on the floor, 15 at 15 cm
+    contact[1, :10, 1] = contact[1, 31:, 1] = True
+    contact[2, :, 1] = True
+    assert floats(skip, FEET, FPS) and floats(jump, FEET, FPS) and not floats(shuffle, FEET, FPS)
+    np.testing.assert_array_equal(lower_to_floor(batch, FEET, HEIGHTS), batch)  # every toe touches once
+    lowered = lower_to_floor(batch, FEET, HEIGHTS, contact, FPS)
+    np.testing.assert_allclose(lowered[0], skip - np.array([0.0, 0.15, 0.0]), atol=1e-12)  # median contact
+    assert not floats(lowered[0], FEET, FPS)
+    np.testing.assert_array_equal(lowered[1:], batch[1:])
+    out = plant_feet(batch, contact, skeleton(), FEET, HEIGHTS, fps=FPS)
+    np.testing.assert_allclose(out[0, 20:35, 6, 1], 0.0, atol=1e-9)  # planted toe on the floor
+    assert (out[0, :, FEET, 1] >= HEIGHTS[:, None] - 1e-9).all()  # the first frames lifted back out
+    np.testing.assert_allclose(_lengths(out), _lengths(batch), atol=1e-9)
+
+
 def test_a_nearly_straight_leg_keeps_its_knee_forward_when_its_foot_is_moved_ahead() -> None:
     """Hip 0.9 m over the ankle, the knee 2 cm ahead of the line between them; the ankle pinned 0.3 m
     ahead and 15 cm up: the new hip-to-ankle line passes in front of the decoded knee, yet the knee
