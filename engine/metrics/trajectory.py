@@ -8,14 +8,16 @@ from engine.errors import ConfigError
 
 
 def end_point_errors(trajectories: np.ndarray, targets: np.ndarray) -> np.ndarray:
-    """(N,) distance in metres between the last root position of trajectories (N, T, 3) and targets (N, 3)."""
+    """(N,) distance in metres between each root path's displacement from its first frame to its last
+    (trajectories (N, T, 3)) and the target end locations (N, 3), which are relative to the start (a clip
+    lowered rigidly onto the floor keeps its end)."""
     traj = np.asarray(trajectories, dtype=np.float64)
     targets = np.asarray(targets, dtype=np.float64)
     if traj.ndim != 3 or traj.shape[2] != 3 or targets.shape != (len(traj), 3):
         raise ConfigError(
             f"need trajectories (N, T, 3) and targets (N, 3), got {traj.shape}, {targets.shape}"
         )
-    return np.linalg.norm(traj[:, -1] - targets, axis=1)
+    return np.linalg.norm(traj[:, -1] - traj[:, 0] - targets, axis=1)
 
 
 def root_travel(trajectories: np.ndarray) -> np.ndarray:

@@ -140,6 +140,10 @@ def test_end_point_errors_and_travel_in_metres() -> None:
     traj[1, -1] = [0.0, 0.0, 1.0]
     np.testing.assert_allclose(end_point_errors(traj, np.zeros((2, 3))), [5.0, 1.0])
     np.testing.assert_allclose(root_travel(traj), [5.0, 1.0])
+    lowered = traj + np.array([0.2, -0.07, 0.0])  # the whole path moved: the same displacement
+    np.testing.assert_allclose(
+        end_point_errors(lowered, np.array([[3.0, 0.0, 4.0], [0.0, 0.0, 0.0]])), [0.0, 1.0]
+    )
 
 
 def test_control_targets_inside_and_outside_the_range() -> None:
