@@ -351,8 +351,8 @@ def main() -> int:
         report,
         {
             "command": command,
-            "seed": args.seed,
-            "epochs": config.epochs,
+            "seed": loaded.provenance.get("seed", args.seed),
+            "epochs": loaded.provenance.get("epochs", loaded.config.epochs),
             "train_seconds": summary["train_seconds"],
             "windows_per_s": summary["windows_per_s"],
             "device": f"{args.device} ({platform.processor() or platform.machine()}, "
