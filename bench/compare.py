@@ -538,10 +538,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     default_wanted = "odmo_default" in wanted and DEFAULT_MODEL not in folders.values()
     if default_wanted and _default_matches(None, fingerprint, args.seed):
         folders["odmo_default"] = DEFAULT_MODEL
-        epochs = json.loads((DEFAULT_MODEL / META_FILE).read_text())["provenance"]["epochs"]
+        provenance = json.loads((DEFAULT_MODEL / META_FILE).read_text())["provenance"]
+        start = provenance.get("warm_start")
+        origin = f" from the {start['epochs']}-epoch weights {start['weights_sha256'][:12]}" if start else ""
         notes["odmo_default"] = (
-            f"{shown(DEFAULT_MODEL, 'DEFAULT')}, trained {epochs} epochs by bench/train_default.py "
-            "(its MODEL_CARD.md has the command and settings)"
+            f"{shown(DEFAULT_MODEL, 'DEFAULT')}, trained {provenance['epochs']} epochs{origin} by "
+            "bench/train_default.py (its MODEL_CARD.md has the command and settings)"
         )
     labels = {}
     previous = [previous_key(i) for i in range(len(args.previous))] if "odmo_previous" in wanted else []
