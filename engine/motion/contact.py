@@ -131,13 +131,11 @@ def contact_labels(
     return low & (speed < speed_tol)
 
 
-def floats(joints: np.ndarray, feet: Sequence[int], fps: float) -> bool:
-    """Whether every foot joint stays more than 10 cm above the floor for 0.5 s or more in a row."""
-    up = np.asarray(joints)[:, list(feet), 1].min(axis=1) > FLOAT_HEIGHT
+def floats(joints: np.ndarray, feet: Sequence[int], fps: float) -> np.ndarray:
+    """Whether every foot joint stays more than 10 cm above the floor for 0.5 s or more in a row, per
+    clip of joints (..., T, J, 3): a bool array of the leading shape (0-d for one clip)."""
+    up = np.asarray(joints)[..., list(feet), 1].min(axis=-1) > FLOAT_HEIGHT  # (..., T)
     need = max(1, int(np.ceil(FLOAT_SECONDS * fps - 1e-9)))
-    run = 0
-    for flag in up:
-        run = run + 1 if flag else 0
-        if run >= need:
-            return True
-    return False
+    count = np.cumsum(up, axis=-1)
+    run = count - np.maximum.accumulate(np.where(up, 0, count), axis=-1)
+    return (run >= need).any(axis=-1)

@@ -157,10 +157,9 @@ def lower_to_floor(
     drop = np.maximum(above.min(axis=(1, 2)), 0.0)
     if contact is not None and fps is not None:
         planted = np.asarray(contact, bool)
-        for b in range(len(out)):
-            lowered = out[b] - np.array([0.0, drop[b], 0.0], dtype=out.dtype)
-            if planted[b].any() and floats(lowered, feet, fps):
-                drop[b] = max(drop[b], float(np.median(above[b][planted[b]])))
+        lowered = out[..., list(feet), :] - drop[:, None, None, None] * np.array([0.0, 1.0, 0.0])
+        for b in np.flatnonzero(floats(lowered, range(len(feet)), fps) & planted.any(axis=(1, 2))):
+            drop[b] = max(drop[b], float(np.median(above[b][planted[b]])))
     if not drop.any():
         return out
     out = out.copy()

@@ -129,6 +129,11 @@ def test_a_floating_clip_floats_for_half_a_second() -> None:
     assert physics.floats(up, [5, 6], FPS)
     assert not physics.floats(short, [5, 6], FPS)
     assert physics.float_share([up, short, standing(), up], [5, 6], FPS) == pytest.approx(0.5)
+    split = standing()
+    split[5:14, :, 1] += 0.2
+    split[15:24, :, 1] += 0.2  # two 9-frame spells, one frame down between them
+    batch = np.stack([up, short, standing(), split, up])
+    np.testing.assert_array_equal(physics.floats(batch, [5, 6], FPS), [True, False, False, False, True])
 
 
 def test_limb_speed_amplitude_and_jerk_of_known_motion() -> None:
