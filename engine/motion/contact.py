@@ -3,6 +3,9 @@
 Contact rule (labels for training and for the decode-time clean-up): a foot joint is planted in a frame
 when its height lies within ``height_tol`` (3 cm) of its resting height (the lowest height that joint
 reaches in the data, floor at y = 0) and its speed is under ``speed_tol`` (0.5 m/s).
+
+Floating rule (``floats``; the physical metric and the clean-up's ground rule share it): a clip floats
+when every foot joint stays over ``FLOAT_HEIGHT`` (10 cm) for ``FLOAT_SECONDS`` (0.5 s) in a row.
 """
 
 from __future__ import annotations
