@@ -307,12 +307,16 @@ def card_argv(argv: list[str]) -> list[str]:
 TRAINING_COMMAND = "train_command.json"
 
 
-def training_command(script: str, work: Path, argv: list[str], trained: bool) -> str:
-    """The card's training command (``card_argv``): this run's when it ``trained``, recorded in ``work``;
-    a card made later from that folder (``--skip-train``, whose evaluation may take other options such
-    as ``--threads``) shows the recorded one, or this run's where the training recorded none."""
+def training_argv(work: Path, argv: list[str], trained: bool) -> list[str]:
+    """The training's options as a card shows them (``card_argv``): this run's when it ``trained``,
+    recorded in ``work``; a run that only evaluates that folder (``--skip-train``, perhaps with other
+    options such as ``--threads``) gets the recorded ones, or its own where the training recorded none."""
     record = work / TRAINING_COMMAND
     if trained:
         atomic_write_text(record, json.dumps(card_argv(argv)))
-    options = json.loads(record.read_text()) if record.is_file() else card_argv(argv)
-    return " ".join(["python", script, *options])
+    return json.loads(record.read_text()) if record.is_file() else card_argv(argv)
+
+
+def training_command(script: str, work: Path, argv: list[str], trained: bool) -> str:
+    """The card's training command: ``script`` with its ``training_argv``."""
+    return " ".join(["python", script, *training_argv(work, argv, trained)])

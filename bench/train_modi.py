@@ -36,6 +36,7 @@ from bench.model_card import (
     per_action_table,
     physics_targets,
     repo_path,
+    training_argv,
     training_command,
 )
 from engine.fileio import atomic_write_text
@@ -64,8 +65,8 @@ UNCONDITIONAL = (
 )
 
 
-def parse_args() -> argparse.Namespace:
-    """Command-line options."""
+def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
+    """Command-line options (``argv``; None: the process's)."""
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--data", required=True, type=Path)
     p.add_argument("--out", type=Path, default=DEFAULT_OUT)
@@ -83,7 +84,7 @@ def parse_args() -> argparse.Namespace:
     p.add_argument("--threads", type=int, default=1, help="torch CPU threads")
     p.add_argument("--reuse-eval", action="store_true", help="reuse --work/eval.json for the card")
     p.add_argument("--skip-train", action="store_true", help="package the model and bank already in --work")
-    return p.parse_args()
+    return p.parse_args(argv)
 
 
 def cached_features(work: Path, prepared: PreparedClips) -> ClipFeatures:
@@ -132,7 +133,7 @@ def main() -> int:
         )  # fmt: skip
     generator = open_generator(work)
     made = generator.loaded.provenance
-    summary = {k: made[k] for k in ("train_seconds", "n_train", "n_val")} | {"torch_threads": args.threads}
+    summary = {k: made[k] for k in ("train_seconds", "n_train", "n_val")}
     trained = set(generator.loaded.provenance["train_sources"])
     held = (
         heldout_split(dataset.clips)[1]
@@ -162,6 +163,7 @@ def main() -> int:
     edits_path = out / "edits.json"
     edits = json.loads(edits_path.read_text()) if edits_path.is_file() else None
     command = training_command("bench/train_modi.py", work, sys.argv[1:], trained=not args.skip_train)
+    summary["torch_threads"] = parse_args(training_argv(work, sys.argv[1:], trained=False)).threads
     card = model_card(report, generator, summary, command, held, prepared.fingerprint(), args.split, edits)
     atomic_write_text(out / "MODEL_CARD.md", card)
     return 0

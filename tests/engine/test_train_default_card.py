@@ -5,7 +5,8 @@ from __future__ import annotations
 import re
 from pathlib import Path
 
-from bench.model_card import card_argv, training_command
+from bench import train_modi
+from bench.model_card import card_argv, training_argv, training_command
 from bench.train_default import model_switches
 from engine.model.config import PAPER, OdmoConfig
 
@@ -60,3 +61,14 @@ def test_a_card_made_later_from_a_trained_folder_shows_the_training_command(tmp_
         training_command("bench/x.py", fresh, later, trained=False)
         == "python bench/x.py --data DATA --threads 1"
     )
+
+
+def test_a_modi_card_made_later_reads_the_training_threads_from_the_recorded_command(tmp_path: Path) -> None:
+    """The MoDi card's budget names the threads the training ran on, not the re-evaluation's."""
+    trained = ["--data", "/home/me/bandai", "--work", str(tmp_path), "--epochs", "160", "--threads", "2"]
+    training_argv(tmp_path, trained, trained=True)
+    later = ["--data", "/mnt/other", "--work", str(tmp_path), "--skip-train", "--threads", "1"]
+    assert train_modi.parse_args(training_argv(tmp_path, later, trained=False)).threads == 2
+    unrecorded = tmp_path / "older"
+    unrecorded.mkdir()
+    assert train_modi.parse_args(training_argv(unrecorded, ["--data", "D"], trained=False)).threads == 1
