@@ -138,6 +138,24 @@ def _kabsch(rest: np.ndarray, seen: np.ndarray, weights: np.ndarray) -> Rotation
     return Rotation.from_quat(quats)
 
 
+#: Seconds over which a longer clip finds its floor (windows this long, each overlapping the next by half):
+#: longer than any generator's window here (1.6-3.2 s), so only a long sequence is cut.
+FLOOR_SECONDS = 4.0
+
+
+def _floor_drops(
+    feet: np.ndarray, heights: np.ndarray, planted: np.ndarray | None, fps: float | None
+) -> np.ndarray:
+    """Per clip of foot joints (N, T, F, 3), how far ``lower_to_floor`` moves it down (N,)."""
+    above = feet[..., 1] - heights  # (N, T, F)
+    drop = np.maximum(above.min(axis=(1, 2)), 0.0)
+    if planted is not None and fps is not None:
+        lowered = feet - drop[:, None, None, None] * np.array([0.0, 1.0, 0.0])
+        for b in np.flatnonzero(floats(lowered, range(feet.shape[2]), fps) & planted.any(axis=(1, 2))):
+            drop[b] = max(drop[b], float(np.median(above[b][planted[b]])))
+    return drop
+
+
 def lower_to_floor(
     joints: np.ndarray,
     feet: Sequence[int],
@@ -151,19 +169,33 @@ def lower_to_floor(
     clip whose feet then still float (``floats``) is lowered further by the median height over rest of
     its foot joints in their predicted-contact frames (a gait that skips a step keeps both feet up
     between the frames where they touch). A model that places the first root frame at a fixed height
-    gives a clip in a crouching gait (a walk, a run) feet that never come down."""
+    gives a clip in a crouching gait (a walk, a run) feet that never come down.
+
+    Given ``fps``, a clip longer than ``FLOOR_SECONDS`` (a long sequence whose height drifts) finds its
+    floor so in each window of that length, half overlapping, and is moved down by their drops
+    interpolated linearly between the windows' centres."""
     out = np.asarray(joints)
-    above = out[..., list(feet), 1] - np.asarray(heights, dtype=out.dtype)  # (B, T, F)
-    drop = np.maximum(above.min(axis=(1, 2)), 0.0)
-    if contact is not None and fps is not None:
-        planted = np.asarray(contact, bool)
-        lowered = out[..., list(feet), :] - drop[:, None, None, None] * np.array([0.0, 1.0, 0.0])
-        for b in np.flatnonzero(floats(lowered, range(len(feet)), fps) & planted.any(axis=(1, 2))):
-            drop[b] = max(drop[b], float(np.median(above[b][planted[b]])))
+    foot = out[..., list(feet), :]  # (B, T, F, 3)
+    rest = np.asarray(heights, dtype=out.dtype)
+    planted = None if contact is None else np.asarray(contact, bool)
+    frames = out.shape[1]
+    span = frames if fps is None else max(2, round(FLOOR_SECONDS * fps))
+    if frames <= span:
+        drop = np.repeat(_floor_drops(foot, rest, planted, fps)[:, None], frames, axis=1)
+    else:
+        starts = np.unique(np.r_[np.arange(0, frames - span, span // 2), frames - span])
+        cut = np.stack([foot[:, s : s + span] for s in starts], axis=1)  # (B, K, span, F, 3)
+        cut_planted = (
+            None if planted is None else np.stack([planted[:, s : s + span] for s in starts], axis=1)
+        )
+        flat = None if cut_planted is None else cut_planted.reshape(-1, *cut_planted.shape[2:])
+        drops = _floor_drops(cut.reshape(-1, *cut.shape[2:]), rest, flat, fps).reshape(len(out), len(starts))
+        centres = starts + (span - 1) / 2
+        drop = np.stack([np.interp(np.arange(frames), centres, d) for d in drops])
     if not drop.any():
         return out
     out = out.copy()
-    out[..., 1] -= drop[:, None, None].astype(out.dtype)
+    out[..., 1] -= drop[:, :, None].astype(out.dtype)
     return out
 
 

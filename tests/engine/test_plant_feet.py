@@ -178,6 +178,29 @@ def test_a_floating_clip_is_lowered_by_its_predicted_contacts_and_a_jump_or_a_st
     np.testing.assert_allclose(_lengths(out), _lengths(batch), atol=1e-9)
 
 
+def test_a_long_sequence_finds_its_floor_where_it_is_not_where_it_floats_elsewhere() -> None:
+    """A 60-s stand whose body rises steadily to 0.6 m over the floor while the model says the toe is
+    planted throughout: lowered clip-wide it would either stay up (the toe touches at the start) or be
+    sunk by the median everywhere; over 4-s windows every frame's toe comes back to within 4 cm of the
+    floor, never under it (each window is lowered to its lowest frame: at most 4 s of the 1 cm/s drift
+    off). A 60-s stand on the floor with a 1-s jump is left as it is."""
+    t = int(60 * FPS)
+    rising = standing(t)
+    rising[:, :, 1] += np.linspace(0.0, 0.6, t)[:, None]
+    jump = standing(t)
+    jump[600:620, :, 1] += 0.3
+    contact = np.ones((2, t, 2), bool)
+    contact[1, 600:620] = False
+    batch = np.stack([rising, jump])
+    lowered = lower_to_floor(batch, FEET, HEIGHTS, contact, FPS)
+    toe = lowered[0, :, 6, 1]
+    assert toe.min() >= -1e-12 and toe.max() <= 0.04 + 1e-9, (toe.min(), toe.max())
+    np.testing.assert_allclose(lowered[0] - lowered[0, :, :1], rising - rising[:, :1], atol=1e-12)  # rigid
+    np.testing.assert_array_equal(lowered[1], jump)
+    clip_wide = lower_to_floor(batch, FEET, HEIGHTS, contact, None)  # without fps: one floor per clip
+    assert np.abs(clip_wide[0, :, 6, 1]).max() > 0.5
+
+
 def test_a_nearly_straight_leg_keeps_its_knee_forward_when_its_foot_is_moved_ahead() -> None:
     """Hip 0.9 m over the ankle, the knee 2 cm ahead of the line between them; the ankle pinned 0.3 m
     ahead and 15 cm up: the new hip-to-ankle line passes in front of the decoded knee, yet the knee
