@@ -188,8 +188,10 @@ class DvganGenerator(FolderGenerator):
         meta: dict,
         heading: float = 0.0,
         start: np.ndarray | None = None,
+        given: int = 0,
     ) -> list[Motion]:
-        """Motions of features (N, T, F), feet pinned where the model predicts contact."""
+        """Motions of features (N, T, F), feet pinned where the model predicts contact; the first
+        ``given`` frames (a prefix) are kept as they are, and the frames after them stand on its floor."""
         skeleton = self.skeleton
         placed = [feature_joints(f, skeleton, heading, start) for f in features]
         joints = np.stack([p[0] for p in placed])
@@ -197,7 +199,7 @@ class DvganGenerator(FolderGenerator):
         heights = self.loaded.config.foot_heights
         if heights:
             feet = foot_joints(skeleton)
-            joints = plant_feet(joints, contacts > 0.5, skeleton, feet, heights, fps=self.fps)
+            joints = plant_feet(joints, contacts > 0.5, skeleton, feet, heights, fps=self.fps, given=given)
         meta = meta | {"action": action, "model": str(self.path), "kind": self.kind}
         return [
             Motion(j, self.fps, skeleton, action=action, meta=meta | {"index": i})
@@ -308,7 +310,7 @@ class DvganGenerator(FolderGenerator):
         made = self._features(phrase, codes, frames, seeds, prefix=seed_frames)[:, len(context) :]
         whole = np.concatenate([np.broadcast_to(raw, (n, *raw.shape)), made], axis=1)
         meta = {"seed": seed, "prefix_frames": len(raw), "completed_frames": frames}
-        return self._motions(whole, phrase, meta, heading, start)
+        return self._motions(whole, phrase, meta, heading, start, given=len(raw))
 
     def extend(self, motion: Motion, frames: int, seed: int = 0, action: str | None = None) -> Motion:
         """``motion`` followed by ``frames`` more frames ("extend")."""

@@ -209,8 +209,11 @@ def plant_feet(
     reach: float = PLANT_REACH,
     ground: bool = True,
     fps: float | None = None,
+    given: int = 0,
 ) -> np.ndarray:
     """Joints (B, T, J, 3), floor y = 0, with planted feet pinned and no foot under its resting height.
+    The first ``given`` frames (a prefix the motion continues) come back as they are, nothing is lowered,
+    and a contact that began in them holds the foot where they planted it.
 
     With ``ground`` a clip whose feet never come down to the floor is first lowered onto it
     (``lower_to_floor``; by its predicted contacts where it floats, when ``fps`` is given). Per leg
@@ -227,7 +230,7 @@ def plant_feet(
     """
     out = np.array(joints, dtype=np.float64, copy=True)
     feet, heights = list(feet), np.asarray(heights, dtype=np.float64)
-    if ground:
+    if ground and not given:
         out = lower_to_floor(out, feet, heights, contact, fps)
     planted = np.asarray(contact, bool)
     for hip, knee, ankle, below in leg_chains(skeleton):
@@ -238,9 +241,10 @@ def plant_feet(
         rest = heights[cols]
         low = cols[int(np.argmin(rest))]
         toe_planted = _bridged(planted[..., low], PLANT_BRIDGE)
-        delta = _pin_shift(out[:, :, feet[low]], toe_planted, rest.min(), ramp, reach)
+        delta = _pin_shift(out[:, :, feet[low]], toe_planted, rest.min(), ramp, reach, given)
         moved = out[:, :, [feet[c] for c in cols]] + delta[:, :, None]
         delta[..., 1] += np.maximum(0.0, (rest - moved[..., 1]).max(axis=-1))
+        delta[:, :given] = 0.0
         moving = np.abs(delta).max(axis=-1) > 1e-9  # (B, T): frames left alone stay bit-identical
         if not moving.any():
             continue
@@ -269,19 +273,27 @@ def _bridged(planted: np.ndarray, gap: int) -> np.ndarray:
     return planted | ((last >= 0) & (nxt < planted.shape[1]) & (nxt - last - 1 <= gap))
 
 
-def _pin_shift(pos: np.ndarray, planted: np.ndarray, rest: float, ramp: int, reach: float) -> np.ndarray:
+def _pin_shift(
+    pos: np.ndarray, planted: np.ndarray, rest: float, ramp: int, reach: float, given: int = 0
+) -> np.ndarray:
     """(B, T, 3) shift that holds joint positions ``pos`` (B, T, 3) at height ``rest`` and at the mean
     floor point of each contact (``planted`` (B, T)), or ``reach`` metres short of it where the joint
-    strays further. Between contacts the shift fades out linearly over ``ramp`` frames, and across a gap
-    too short for both fades it passes linearly from one contact's shift to the next one's."""
+    strays further; a contact that began in the first ``given`` frames, at their mean floor point.
+    Between contacts the shift fades out linearly over ``ramp`` frames, and across a gap too short for
+    both fades it passes linearly from one contact's shift to the next one's."""
     b, t = planted.shape
     starts = planted & ~np.concatenate([np.zeros((b, 1), bool), planted[:, :-1]], axis=1)
     seg = np.cumsum(starts, axis=1) + (np.arange(b) * (t + 1))[:, None]
     ids = seg[planted]
-    count = np.bincount(ids, minlength=b * (t + 1))
+    weight = np.ones(ids.shape)
+    if given:
+        first = np.broadcast_to(np.arange(t) < given, (b, t))[planted]
+        weight = np.where(np.bincount(ids, weights=first, minlength=b * (t + 1))[ids] > 0, first, 1.0)
+    count = np.bincount(ids, weights=weight, minlength=b * (t + 1))
     delta = np.zeros((b, t, 3))
     for axis in (0, 2):
-        mean = np.bincount(ids, weights=pos[..., axis][planted], minlength=count.size) / np.maximum(count, 1)
+        total = np.bincount(ids, weights=weight * pos[..., axis][planted], minlength=count.size)
+        mean = total / np.maximum(count, 1e-12)
         delta[..., axis][planted] = mean[ids] - pos[..., axis][planted]
     far = np.hypot(delta[..., 0], delta[..., 2])
     delta[..., [0, 2]] *= np.minimum(1.0, reach / np.maximum(far, _EPS))[..., None]

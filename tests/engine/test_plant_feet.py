@@ -201,6 +201,28 @@ def test_a_long_sequence_finds_its_floor_where_it_is_not_where_it_floats_elsewhe
     assert np.abs(clip_wide[0, :, 6, 1]).max() > 0.5
 
 
+def test_a_continuation_keeps_its_given_frames_and_holds_a_contact_where_they_planted_it() -> None:
+    """A stand of 10 given frames, then 30 decoded ones sliding 0.1 m/s along z with the toe planted
+    throughout (a bent knee): the given frames come back bit-identical and the toe stays where they put
+    it (the whole contact's mean would have dragged it 5.8 cm on). A continuation floating 15 cm up with
+    no contact is not lowered onto the floor (its given frames stand where they stand)."""
+    sliding = _sliding(31, speed=0.1)  # knee bent, toe 1 cm over the floor
+    clip = np.concatenate([np.repeat(sliding[:1], 10, axis=0), sliding[1:]])
+    contact = np.ones((1, 40, 2), bool)
+    out = plant_feet(clip[None], contact, skeleton(), FEET, HEIGHTS, fps=FPS, given=10)[0]
+    np.testing.assert_array_equal(out[:10], clip[:10])
+    held = clip[0, 6] - np.array([0.0, 0.01, 0.0])  # the given frames' floor point
+    np.testing.assert_allclose(out[10:, 6], np.repeat(held[None], 30, axis=0), atol=1e-9)
+    np.testing.assert_allclose(out[:, 0], clip[:, 0])  # the hips are not moved
+    np.testing.assert_allclose(_lengths(out), _lengths(clip), atol=1e-9)
+    whole = plant_feet(clip[None], contact, skeleton(), FEET, HEIGHTS, fps=FPS)[0]
+    assert whole[0, 6, 2] - clip[0, 6, 2] > 0.05  # one contact pinned at its mean
+    up = (standing() + np.array([0.0, 0.15, 0.0]))[None]
+    none = np.zeros((1, 40, 2), bool)
+    np.testing.assert_array_equal(plant_feet(up, none, skeleton(), FEET, HEIGHTS, fps=FPS, given=10), up)
+    assert plant_feet(up, none, skeleton(), FEET, HEIGHTS, fps=FPS)[0, :, 6, 1].max() < 1e-9
+
+
 def test_a_nearly_straight_leg_keeps_its_knee_forward_when_its_foot_is_moved_ahead() -> None:
     """Hip 0.9 m over the ankle, the knee 2 cm ahead of the line between them; the ankle pinned 0.3 m
     ahead and 15 cm up: the new hip-to-ankle line passes in front of the decoded knee, yet the knee
