@@ -76,6 +76,7 @@ def parse_args() -> argparse.Namespace:
     p.add_argument("--no-results", action="store_true", help="leave docs/RESULTS.md alone")
     p.add_argument("--epochs", type=int, default=100)
     p.add_argument("--generator", default="rnn", choices=("rnn", "cnn"))
+    p.add_argument("--tape-windows", type=int, default=2, help="windows per generated tape (final cut)")
     p.add_argument("--hold-out-action", help="leave this action's clips out of training (phrase ablation)")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--threads", type=int, default=1, help="torch CPU threads")
@@ -98,7 +99,7 @@ def main() -> int:
     if not args.skip_train:
         config = DvganConfig(
             n_actions=len(names), n_joints=dataset.skeleton.n_joints, epochs=args.epochs,
-            generator=args.generator,
+            generator=args.generator, tape_windows=args.tape_windows,
         )  # fmt: skip
         bar = tqdm(total=config.epochs, desc="dvgan", unit="epoch")
 

@@ -25,6 +25,7 @@ MAX_SIZES: Mapping[str, float] = {
     "n_actions": 1_000,
     "n_joints": 256,
     "window": 1_000,
+    "tape_windows": 64,
     "fps": 1_000.0,
     "latent_dim": 1_024,
     "enc_hidden": 2_048,

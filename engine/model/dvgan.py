@@ -51,7 +51,9 @@ class DvganConfig(ModelConfig):
     empty until then); ``prefix_rate`` of the generator batches start from a real prefix of
     1..``max_prefix`` frames (the completion the RNN is trained for);
     ``foot_heights`` are the training data's resting foot heights (the decode-time foot clean-up).
-    An epoch is ``epoch_size`` generated windows (``epoch_size / batch_size`` generator updates).
+    An epoch is ``epoch_size`` generated windows (``epoch_size / batch_size`` generator updates). With
+    ``final_cut`` a generated window is cut from a tape of ``tape_windows`` windows (the paper's 2N):
+    a longer tape makes the RNN keep a motion going past its first frames.
     """
 
     n_actions: int
@@ -64,6 +66,7 @@ class DvganConfig(ModelConfig):
     hidden: int = 128
     noise_dim: int = 32
     final_cut: bool = True
+    tape_windows: int = 2
     shift: bool = True
     critic_steps: int = 5
     gp_weight: float = 10.0
@@ -77,7 +80,7 @@ class DvganConfig(ModelConfig):
     arch: str = "dvgan"
 
     POSITIVE = ("n_actions", "n_joints", "window", "fps", "hidden", "noise_dim")
-    POSITIVE += ("critic_steps", "lr", "batch_size", "epoch_size", "max_prefix")
+    POSITIVE += ("critic_steps", "lr", "batch_size", "epoch_size", "max_prefix", "tape_windows")
     NON_NEGATIVE = ("n_features", "gp_weight", "epochs")
     RATES = ("prefix_rate",)
     CHOICES: ClassVar[dict[str, tuple[str, ...]]] = {"generator": GENERATORS}
@@ -87,13 +90,15 @@ class DvganConfig(ModelConfig):
         """A prefix shorter than the window; CNN windows a power of two."""
         if self.max_prefix >= self.window:
             raise ConfigError(f"max_prefix {self.max_prefix} must be shorter than the window {self.window}")
-        if self.generator == "cnn" and self.window & (self.window - 1):
-            raise ConfigError(f"the CNN generator needs a power-of-two window, got {self.window}")
+        if self.generator == "cnn" and self.tape & (self.tape - 1):
+            raise ConfigError(
+                f"the CNN generator needs a power-of-two tape, got {self.window} × {self.tape_windows} frames"
+            )
 
     @property
     def tape(self) -> int:
         """Frames generated before the final cut."""
-        return 2 * self.window if self.final_cut else self.window
+        return self.tape_windows * self.window if self.final_cut else self.window
 
 
 class LanguageModel(nn.Module):

@@ -3,6 +3,7 @@ completion, seamless continuation, phrases) and its CLI."""
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 
 import numpy as np
@@ -18,7 +19,15 @@ from engine.generators.dvgan import DvganGenerator
 from engine.metrics.by_kind import evaluate_generator
 from engine.metrics.dvgan_eval import HORIZONS_MS, completion_errors, long_sequences
 from engine.metrics.physics import bone_length_cv
-from engine.model.dvgan import LanguageModel, final_cut, gradient_penalty, phrase_words, shifted
+from engine.model.dvgan import (
+    DvganConfig,
+    DvganNetwork,
+    LanguageModel,
+    final_cut,
+    gradient_penalty,
+    phrase_words,
+    shifted,
+)
 from engine.model.dvgan_features import feature_joints, motion_features, solve_pose, typical_skeleton
 from engine.motion.contact import foot_joints
 from engine.motion.formats import read_motion, write_motion
@@ -94,6 +103,26 @@ def test_final_cut_is_a_window_of_the_tape() -> None:
     starts = cut[:, 0, 0]
     np.testing.assert_array_equal((cut[:, :, 0] - starts[:, None]).numpy(), np.tile(np.arange(8.0), (30, 1)))
     assert starts.min() >= 0 and starts.max() <= 12 and len(set(starts.tolist())) > 3
+
+
+def test_a_tape_is_as_many_windows_as_the_config_asks() -> None:
+    """``tape_windows`` sets the generated tape a window is cut from (default 2: the paper's 2N); a CNN
+    tape must be a power of two; a model.json from before the field reads the paper's tape."""
+    long = DvganConfig(n_actions=2, n_joints=3, n_features=5, window=16, max_prefix=8, tape_windows=8)
+    assert long.tape == 128 and DvganConfig(n_actions=2, n_joints=3).tape == 64
+    net = DvganNetwork(dataclasses.replace(long, words=("walk",)))
+    z = net.noise(3, long.tape - 1, torch.Generator().manual_seed(0))
+    with torch.no_grad():
+        tape = net.tape(net.language(["walk"]).expand(3, -1), torch.zeros(3, long.noise_dim), z)
+    assert tape.shape == (3, 128, 5)
+    with pytest.raises(ConfigError, match="power-of-two tape"):
+        DvganConfig(n_actions=2, n_joints=3, window=16, max_prefix=8, tape_windows=3, generator="cnn")
+    with pytest.raises(ConfigError, match="tape_windows"):
+        DvganConfig(n_actions=2, n_joints=3, tape_windows=0)
+    with pytest.raises(ConfigError, match="tape_windows = 10000 is over the limit"):
+        DvganConfig(n_actions=2, n_joints=3, tape_windows=10_000)
+    older = {k: v for k, v in DvganConfig(n_actions=2, n_joints=3).to_dict().items() if k != "tape_windows"}
+    assert DvganConfig.from_dict(older).tape == 64
 
 
 def test_gradient_penalty_of_a_critic_with_gradient_norm_two_is_one() -> None:
