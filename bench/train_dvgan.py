@@ -39,10 +39,11 @@ from bench.model_card import (
     repo_path,
     training_command,
 )
+from bench.warm_start import warm_start_from, warm_start_line
 from engine.errors import ConfigError
 from engine.fileio import atomic_write_text
 from engine.generators import SampleRequest, open_generator
-from engine.generators.dvgan import DvganGenerator
+from engine.generators.dvgan import DvganGenerator, load_dvgan
 from engine.metrics.classifier import Classifier, load_classifier
 from engine.metrics.dvgan_eval import HORIZONS_MS, completion_errors, evaluate_dvgan, long_sequences
 from engine.metrics.unconditional import classify_joints
@@ -77,6 +78,9 @@ def parse_args() -> argparse.Namespace:
     p.add_argument("--epochs", type=int, default=100)
     p.add_argument("--generator", default="rnn", choices=("rnn", "cnn"))
     p.add_argument("--tape-windows", type=int, default=2, help="windows per generated tape (final cut)")
+    p.add_argument(
+        "--warm-start", type=Path, help="start from this DVGAN folder's generator (trained on this split)"
+    )
     p.add_argument("--hold-out-action", help="leave this action's clips out of training (phrase ablation)")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--threads", type=int, default=1, help="torch CPU threads")
@@ -111,9 +115,10 @@ def main() -> int:
                 )
                 bar.refresh()
 
+        start = None if args.warm_start is None else warm_start_from(args.warm_start, held, load_dvgan)
         train_dvgan(
             train_clips, names, args.work, config, seed=args.seed, device="cpu", resume=args.resume,
-            progress=show,
+            progress=show, warm_start=start,
         )  # fmt: skip
         bar.close()
     generator = open_generator(args.work)
@@ -323,6 +328,7 @@ def model_card(report: dict[str, Any], generator: DvganGenerator, command: str, 
         f"{config.prefix_rate:.0%} of generator batches completing a real prefix of 1–{config.max_prefix} "
         f"frames; {params / 1e6:.2f} M generator parameters. The paper's k = 256 and 10 critic updates "
         "per generator update did not fit two CPU cores.",
+        *warm_start_line(made.get("warm_start")),
         f"- Data: {made['n_train']} training and {made['n_val']} validation clips; fingerprint "
         f"`{made['data_fingerprint'][:16]}`.",
         f"- Evaluation took {meta['eval_seconds'] / 60:.1f} min.",

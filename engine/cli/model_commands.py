@@ -239,9 +239,12 @@ def _warm_start(arch: str, folder: Path) -> Any:
         from engine.generators.a2m import load_a2m as load
     elif arch == "odmo":
         from engine.modelio import load_model as load
+    elif arch == "dvgan":
+        from engine.generators.dvgan import load_dvgan as load
     else:
         raise ConfigError(
-            f"--warm-start: --arch {arch} trains from its initialisation only (odmo, a2m start from weights)"
+            f"--warm-start: --arch {arch} trains from its initialisation only "
+            "(odmo, a2m and dvgan start from weights)"
         )
     return WarmStart.from_folder(folder, load)
 
@@ -421,8 +424,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "--warm-start",
         type=Path,
         metavar="FOLDER",
-        help="start from this model folder's weights (a fine-tune; odmo and a2m): the settings may change "
-        "the loss weights and schedule, not the sizes",
+        help="start from this model folder's weights (a fine-tune; odmo, a2m and dvgan): the settings may "
+        "change the loss weights and schedule, not the sizes",
     )
     p.add_argument(
         "--arch",

@@ -21,7 +21,7 @@ from engine.train.epochs import (
     TrainResult,
     root_height,
 )
-from engine.train.kind_run import KindRun, RunOptions
+from engine.train.kind_run import KindRun, RunOptions, WarmStart
 
 ARCH = "dvgan"
 #: Top-level codes per action in a bank.
@@ -84,10 +84,12 @@ def train_dvgan(
     bank_per_action: int = BANK_PER_ACTION,
     bank_projections: Sequence[str] = ("pca", "tsne", "umap"),
     bank_k_range: tuple[int, int] = (3, 11),
+    warm_start: WarmStart | None = None,
 ) -> TrainResult:
     """Train DVGAN on ``clips`` and write its model folder ``out_dir`` (weights, model.json on the data's
     typical skeleton, train_log.csv, checkpoints/last.pt, latent_bank.npz); the split, budget, ``resume``
-    and ``cancel`` as in ``engine.train.loop.train``."""
+    and ``cancel`` as in ``engine.train.loop.train``. With ``warm_start`` the generator starts from those
+    weights (a checkpoint to resume from still wins) and the provenance names them."""
     out = Path(out_dir)
     options = RunOptions(seed, device, resume, val_fraction, progress, cancel, checkpoint_every)
     data = KindRun.prepare(clips, action_names, config, options)
@@ -95,9 +97,11 @@ def train_dvgan(
     features = clip_features(prepared)
     config = data_config(config, prepared.action_names, features)
     train_idx, val_idx = data.split
-    steps = DvganSteps(config, prepared, train_idx, val_idx, features, seed=seed, device=data.device)
+    steps = DvganSteps(
+        config, prepared, train_idx, val_idx, features, seed=seed, device=data.device, warm_start=warm_start
+    )
     run = data.train(steps, out, config)
-    made = data.provenance(run, config, steps=int(steps.counter.steps))
+    made = data.provenance(run, config, warm_start, steps=int(steps.counter.steps))
     generator = steps.g.eval()
     write_model_folder(
         out, generator, config.to_dict(), features.skeleton, prepared.action_names, made,

@@ -30,6 +30,7 @@ from engine.model.dvgan import (
 from engine.model.dvgan_features import motion_features, typical_skeleton
 from engine.motion.contact import foot_joints, resting_heights
 from engine.motion.skeleton import Skeleton
+from engine.train.kind_run import WarmStart
 from engine.train.windows import PreparedClips
 
 #: Frames of each clip used to find the typical skeleton (every this many clips).
@@ -69,7 +70,8 @@ class DvganSteps:
     """The DVGAN step on ``prepared``'s clips ``train_idx`` (validation on ``val_idx``), from ``seed``.
 
     ``modules`` holds the generator ``g``, the critic ``d`` and the step count; ``optimizers`` are their
-    Adam (β = 0.5, 0.9, as WGAN-GP). ``total`` is the generator's objective.
+    Adam (β = 0.5, 0.9, as WGAN-GP). ``total`` is the generator's objective. With ``warm_start`` the
+    generator starts from those weights (a model folder holds no critic: it starts afresh).
     """
 
     terms = DVGAN_TERMS
@@ -84,6 +86,7 @@ class DvganSteps:
         *,
         seed: int = 0,
         device: torch.device | str = "cpu",
+        warm_start: WarmStart | None = None,
     ):
         self.config, self.prepared = config, prepared
         self.phrases = list(prepared.action_names)
@@ -99,6 +102,8 @@ class DvganSteps:
         self.g.set_statistics(
             torch.from_numpy(np.concatenate([features.features[i] for i in self.train_idx]))
         )
+        if warm_start is not None:  # its weights, with the feature statistics they were trained on
+            warm_start.load_into(self.g)
         with torch.no_grad():
             self.clips = [self.g.normalise(torch.from_numpy(f).to(device)) for f in features.features]
         self.d = DenseCritic(config, seed + 1).to(device)

@@ -4,6 +4,7 @@ completion, seamless continuation, phrases) and its CLI."""
 from __future__ import annotations
 
 import dataclasses
+import hashlib
 from pathlib import Path
 
 import numpy as np
@@ -15,7 +16,7 @@ from engine.cli import main
 from engine.errors import ConfigError
 from engine.generators import SampleRequest, open_generator
 from engine.generators import dvgan as dvgan_kind
-from engine.generators.dvgan import DvganGenerator
+from engine.generators.dvgan import DvganGenerator, load_dvgan
 from engine.metrics.by_kind import evaluate_generator
 from engine.metrics.dvgan_eval import HORIZONS_MS, completion_errors, long_sequences
 from engine.metrics.physics import bone_length_cv
@@ -33,7 +34,10 @@ from engine.motion.contact import foot_joints
 from engine.motion.formats import read_motion, write_motion
 from engine.motion.motion import Motion
 from engine.motion.skeleton import Skeleton
+from engine.train.dvgan_loop import train_dvgan
+from engine.train.kind_run import WarmStart
 from tests.fixtures.procedural import PROCEDURAL_ACTIONS, procedural_skeleton
+from tests.fixtures.tiny_model import tiny_dvgan_config
 
 pytestmark = pytest.mark.usefixtures("torch_single_thread")
 
@@ -123,6 +127,29 @@ def test_a_tape_is_as_many_windows_as_the_config_asks() -> None:
         DvganConfig(n_actions=2, n_joints=3, tape_windows=10_000)
     older = {k: v for k, v in DvganConfig(n_actions=2, n_joints=3).to_dict().items() if k != "tape_windows"}
     assert DvganConfig.from_dict(older).tape == 64
+
+
+def test_a_fine_tune_starts_from_a_saved_generator_and_names_it(
+    tiny_dvgan_dir: Path, procedural_clips, tmp_path: Path
+) -> None:
+    """A warm start with a longer tape and no epochs gives back the saved generator's weights exactly;
+    one epoch moves them; the provenance names the source by sha256."""
+    source = WarmStart.from_folder(tiny_dvgan_dir, load_dvgan)
+    saved = load_dvgan(tiny_dvgan_dir, with_bank=False).model.state_dict()
+    config = tiny_dvgan_config(tape_windows=4, epochs=0)
+    options = {"seed": 0, "device": "cpu", "bank_per_action": 4, "bank_projections": ("pca",)}
+    options |= {"bank_k_range": (1, 2), "warm_start": source}
+    train_dvgan(procedural_clips, PROCEDURAL_ACTIONS, tmp_path / "same", config, **options)
+    same = load_dvgan(tmp_path / "same", with_bank=False)
+    assert same.config.tape == 64
+    for name, tensor in same.model.state_dict().items():
+        torch.testing.assert_close(tensor, saved[name], rtol=0, atol=0, msg=name)
+    weights = hashlib.sha256((tiny_dvgan_dir / "model.safetensors").read_bytes()).hexdigest()
+    assert same.provenance["warm_start"]["weights_sha256"] == weights
+    config = tiny_dvgan_config(tape_windows=4, epochs=1)
+    train_dvgan(procedural_clips, PROCEDURAL_ACTIONS, tmp_path / "tuned", config, **options)
+    tuned = load_dvgan(tmp_path / "tuned", with_bank=False).model.state_dict()
+    assert not torch.equal(tuned["net.diff.weight"], saved["net.diff.weight"])
 
 
 def test_gradient_penalty_of_a_critic_with_gradient_norm_two_is_one() -> None:
