@@ -31,9 +31,9 @@ from bench.model_card import METRICS, cell, per_action_table, physics_targets, r
 from bench.warm_start import warm_start_from, warm_start_line
 from engine.fileio import atomic_write_text
 from engine.generators.a2m import load_a2m
-from engine.metrics.a2m_eval import evaluate_a2m
+from engine.metrics.a2m_eval import evaluate_a2m, prior_accuracy
 from engine.metrics.classifier import load_classifier
-from engine.model.a2m import A2mConfig
+from engine.model.a2m import A2mConfig, A2mModel
 from engine.motion.datasets import load_folder
 from engine.train.a2m_loop import train_a2m
 
@@ -41,6 +41,7 @@ ROOT = Path(__file__).resolve().parents[1]
 DEFAULT_OUT = ROOT / "resources" / "models" / "bandai2-a2m"
 CLASSIFIER = ROOT / "resources" / "models" / "bandai2-odmo" / "classifier"
 SHIPPED = ("model.safetensors", "model.json", "latent_bank.npz", "train_log.csv")
+SELECT_SAMPLES = 20  # prior samples per action that score a checkpoint (--select)
 
 
 def parse_args() -> argparse.Namespace:
@@ -55,6 +56,11 @@ def parse_args() -> argparse.Namespace:
     p.add_argument("--lr-floor", type=float, default=1.0, help="cosine learning-rate floor (1: constant)")
     p.add_argument(
         "--warm-start", type=Path, help="start from this A2M model folder's weights (trained on this split)"
+    )
+    p.add_argument(
+        "--select",
+        action="store_true",
+        help=f"keep the checkpoint whose {SELECT_SAMPLES} prior samples per action the classifier reads best",
     )
     p.add_argument("--kl-weight", type=float, default=0.001)
     p.add_argument("--trajectory-weight", type=float, default=0.8)
@@ -97,6 +103,13 @@ def main() -> int:
                 print(f"epoch {p.epoch}/{p.epochs} {losses} eta {p.eta_s / 60:.0f} min", flush=True)
 
         start = None if args.warm_start is None else warm_start_from(args.warm_start, test_clips, load_a2m)
+        select = None
+        if args.select:
+            judge = load_classifier(args.classifier)
+
+            def select(model: A2mModel) -> float:
+                return prior_accuracy(model, dataset.skeleton, names, judge, SELECT_SAMPLES, args.seed)
+
         result = train_a2m(
             train_clips,
             names,
@@ -107,6 +120,7 @@ def main() -> int:
             resume=args.resume,
             progress=show,
             warm_start=start,
+            select=select,
         )
         summary = {
             "train_seconds": result.train_seconds,
@@ -144,6 +158,7 @@ def main() -> int:
     trained = load_a2m(work)
     summary["windows_seen"] = trained.provenance["windows_seen"]
     summary["warm_start"] = trained.provenance.get("warm_start")
+    summary["selected_epoch"] = trained.provenance.get("selected_epoch")
     command = training_command("bench/train_a2m.py", work, sys.argv[1:], trained=not args.skip_train)
     card = model_card(report, trained.config, summary, command, len(test_clips), dataset.fingerprint)
     atomic_write_text(out / "MODEL_CARD.md", card)
@@ -222,6 +237,7 @@ def model_card(
         f"{summary['torch_threads']} torch thread ({platform.processor() or platform.machine()}, a machine "
         "shared with other jobs).",
         *warm_start_line(summary.get("warm_start")),
+        *selected_line(summary.get("selected_epoch"), config.epochs),
         f"- Settings: hidden {config.hidden}, z {config.latent_dim} per frame, {config.gen_layers}-layer "
         f"generator GRU, window {config.window} frames at {config.fps:g} fps; λ_KL {config.kl_weight:g}, "
         f"λ_trajec {config.trajectory_weight:g} (the released HumanAct12 configuration; the paper's "
@@ -241,6 +257,16 @@ def model_card(
         "",
     ]
     return "\n".join(lines)
+
+
+def selected_line(epoch: int | None, epochs: int) -> list[str]:
+    """The card's line on the epoch chosen by the prior's samples, if the run chose one."""
+    if epoch is None:
+        return []
+    return [
+        f"- Weights of epoch {epoch} of {epochs}: the checkpoint whose {SELECT_SAMPLES} prior samples per "
+        "action the classifier read best (no held-out clip enters the choice)."
+    ]
 
 
 def lr_decay(config: A2mConfig) -> str:

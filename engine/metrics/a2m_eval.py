@@ -27,7 +27,10 @@ from engine.metrics.evaluate import (
     report,
 )
 from engine.metrics.features import canonical_windows, root_heights
+from engine.metrics.unconditional import classify_joints
+from engine.model.a2m import A2mModel
 from engine.motion.motion import Motion
+from engine.motion.skeleton import Skeleton
 from engine.train.windows import WindowBatch, crop_windows, prepare_clips
 
 log = logging.getLogger(__name__)
@@ -43,6 +46,27 @@ NOT_APPLICABLE = (
     "control_accuracy",
     "control_accuracy_out",
 )
+
+
+def prior_accuracy(
+    model: A2mModel,
+    skeleton: Skeleton,
+    action_names: Sequence[str],
+    classifier: Classifier,
+    n_per_action: int = 20,
+    seed: int = 0,
+) -> float:
+    """Share of ``n_per_action`` motions per action of ``action_names`` (the model's), drawn from the
+    model's learned prior with ``seed``, that ``classifier`` reads as their action: a score to choose a
+    training epoch by, which no held-out clip enters."""
+    device = next(model.parameters()).device
+    generator = torch.Generator(device).manual_seed(seed)
+    actions = torch.arange(len(action_names), device=device).repeat_interleave(n_per_action)
+    with torch.no_grad():
+        joints, _ = model.sample(actions, generator)
+    _, predicted = classify_joints(classifier, joints.cpu().numpy(), skeleton)
+    wanted = np.repeat(np.asarray(action_names), n_per_action)
+    return float(np.mean(np.asarray(classifier.action_names)[predicted] == wanted))
 
 
 def a2m_reconstruct(loaded: LoadedA2m, batch: WindowBatch) -> np.ndarray:

@@ -169,6 +169,7 @@ def train_a2m(
     bank_projections: Sequence[str] = ("pca", "tsne", "umap"),
     bank_k_range: tuple[int, int] = (3, 11),
     warm_start: WarmStart | None = None,
+    select: Callable[[A2mModel], float] | None = None,
 ) -> TrainResult:
     """Train an A2M baseline on ``clips`` and write its model folder ``out_dir``.
 
@@ -179,6 +180,8 @@ def train_a2m(
     checkpoints/last.pt and, with a code space, latent_bank.npz (``bank_projections`` maps, modes over
     ``bank_k_range``); ``resume`` and ``cancel`` behave as in ``train``. With ``warm_start`` the model
     starts from those weights (a checkpoint to resume from still wins) and the provenance names them.
+    With ``select`` (a score of the model, higher is better; e.g. ``prior_accuracy``) the folder gets the
+    weights of the checkpoint epoch that scored best, and the provenance names that epoch.
     """
     out = Path(out_dir)
     options = RunOptions(seed, device, resume, val_fraction, progress, cancel, checkpoint_every)
@@ -192,10 +195,12 @@ def train_a2m(
         warm_start.load_into(model)
     model = model.to(data.device)
     validation = crop_windows(prepared, data.val_idx, None) if len(data.val_idx) else None
-    run = data.train(A2mSteps(model, prepared, train_idx, validation), out, config)
+    score = None if select is None else (lambda: select(model))
+    run = data.train(A2mSteps(model, prepared, train_idx, validation), out, config, score)
     if config.code_dim:
         fit_code_space(model, prepared, train_idx)
-    made = data.provenance(run, config, warm_start)
+    chosen = {} if run.selected_epoch is None else {"selected_epoch": run.selected_epoch}
+    made = data.provenance(run, config, warm_start, **chosen)
     height = root_height(prepared)
     write_model_folder(
         out, model, config.to_dict(), prepared.skeleton, prepared.action_names, made, height, "a2m"

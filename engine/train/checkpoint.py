@@ -15,11 +15,27 @@ from engine.fileio import atomic_write_bytes
 
 CHECKPOINT_DIR = "checkpoints"
 CHECKPOINT_FILE = "last.pt"
+BEST_FILE = "best.pt"
 
 
 def checkpoint_path(out_dir: str | Path) -> Path:
     """Where ``train`` keeps the latest checkpoint of ``out_dir``."""
     return Path(out_dir) / CHECKPOINT_DIR / CHECKPOINT_FILE
+
+
+def save_weights(path: str | Path, model: torch.nn.Module) -> None:
+    """Write ``model``'s state alone (atomically): the weights a run chose to keep."""
+    buffer = io.BytesIO()
+    torch.save(model.state_dict(), buffer)
+    atomic_write_bytes(path, buffer.getvalue())
+
+
+def load_weights(path: str | Path, model: torch.nn.Module) -> None:
+    """Load a state written by ``save_weights`` into ``model``; ModelFormatError if it does not fit."""
+    try:
+        model.load_state_dict(torch.load(path, map_location="cpu", weights_only=True))
+    except (OSError, RuntimeError, KeyError, TypeError, ValueError) as exc:
+        raise ModelFormatError(f"{path}: unusable weights: {exc}") from exc
 
 
 def save_checkpoint(

@@ -16,11 +16,18 @@ from typing import Any, Protocol
 import numpy as np
 import torch
 
-from engine.errors import CancelledError, ModelFormatError
+from engine.errors import CancelledError, ConfigError, ModelFormatError
 from engine.fileio import atomic_write_text
 from engine.latent.bank import LatentBank
 from engine.model.config_base import ModelConfig
-from engine.train.checkpoint import checkpoint_path, load_checkpoint, save_checkpoint
+from engine.train.checkpoint import (
+    BEST_FILE,
+    checkpoint_path,
+    load_checkpoint,
+    load_weights,
+    save_checkpoint,
+    save_weights,
+)
 from engine.train.distributed import SINGLE, Ranks, same_on_every_rank
 from engine.train.windows import PreparedClips
 
@@ -120,6 +127,7 @@ class EpochsRun:
     train_losses: dict[str, float]
     val_losses: dict[str, float] | None
     windows_per_s: float
+    selected_epoch: int | None = None
 
 
 def write_log(path: Path, rows: list[dict[str, float]]) -> None:
@@ -172,20 +180,29 @@ def run_epochs(
     cancel: Callable[[], bool] | None = None,
     checkpoint_every: int = 10,
     ranks: Ranks = SINGLE,
+    select: Callable[[], float] | None = None,
 ) -> EpochsRun:
     """Train ``epochs`` epochs of ``steps_per_epoch`` steps, logging to ``out_dir``/train_log.csv and
     checkpointing to checkpoints/last.pt every ``checkpoint_every`` epochs and at the end (rank 0 of
     ``ranks`` alone writes; every rank resumes from the same checkpoint).
+
+    ``select`` (one process only) scores the model at each checkpoint (higher is better; the log's
+    ``select_score``): the best-scoring weights are kept in checkpoints/best.pt and are the modules'
+    at the end, their epoch ``selected_epoch``.
 
     ``resume`` continues exactly from that checkpoint (RNG states included); one made with another
     ``identity`` (see ``run_identity``) raises ModelFormatError. ``cancel`` is checked before every step;
     cancelling raises CancelledError and keeps the last checkpoint (across ranks it must fire on every
     rank: one rank that stops leaves the others waiting in the next all-reduce).
     """
+    if select is not None and ranks.distributed:
+        raise ConfigError("choosing the best epoch by a score trains in one process only")
     out = Path(out_dir)
     ckpt = checkpoint_path(out)
+    best_path = ckpt.parent / BEST_FILE
     rows: list[dict[str, float]] = []
     start, train_seconds = 0, 0.0
+    best: list[float] | None = None  # [epoch, score]
     if resume and ckpt.exists():
         start, extra = load_checkpoint(
             ckpt, model=steps.modules, optimizers=steps.optimizers, rng=rng, torch_rng=generator
@@ -193,6 +210,7 @@ def run_epochs(
         if not _same_run(extra.get("identity"), identity, config):
             raise ModelFormatError(f"{ckpt}: checkpoint is from a different config, seed or data set")
         rows, train_seconds = list(extra["log"]), float(extra["train_seconds"])
+        best = extra.get("best")
         log.info("resuming %s after epoch %d", out, start)
     elif resume:
         log.info("%s: no checkpoint, training from scratch", ckpt)
@@ -240,6 +258,11 @@ def run_epochs(
         row |= {"seconds": seconds, "windows_per_s": steps_per_epoch * steps.windows_per_step / seconds}
         rows.append(row)
         if ranks.is_main and ((epoch + 1) % checkpoint_every == 0 or epoch + 1 == epochs):
+            if select is not None:
+                row["select_score"] = score = float(select())
+                if best is None or score > best[1]:
+                    best = [epoch + 1, score]
+                    save_weights(best_path, steps.modules)
             write_log(out / LOG_FILE, rows)
             save_checkpoint(
                 ckpt,
@@ -248,12 +271,16 @@ def run_epochs(
                 optimizers=steps.optimizers,
                 rng=rng,
                 torch_rng=generator,
-                extra={"identity": identity, "log": rows, "train_seconds": train_seconds},
+                extra={"identity": identity, "log": rows, "train_seconds": train_seconds, "best": best},
             )
     if ranks.is_main:
         write_log(out / LOG_FILE, rows)
+    selected = None
+    if select is not None and best is not None:
+        selected = int(best[0])
+        load_weights(best_path, steps.modules)
     steps.modules.eval()
-    return EpochsRun(rows, train_seconds, train_losses, val_losses, rate * steps.windows_per_step)
+    return EpochsRun(rows, train_seconds, train_losses, val_losses, rate * steps.windows_per_step, selected)
 
 
 def clipped_step(

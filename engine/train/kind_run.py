@@ -119,9 +119,11 @@ class KindRun:
         """The (train, validation) clip indices."""
         return self.train_idx, self.val_idx
 
-    def train(self, steps: EpochSteps, out: Path, config: ModelConfig) -> EpochsRun:
+    def train(
+        self, steps: EpochSteps, out: Path, config: ModelConfig, select: Callable[[], float] | None = None
+    ) -> EpochsRun:
         """``run_epochs`` of ``steps``: ``config.epochs`` epochs of ``steps_per_epoch``, the run's identity
-        from its config, data, seed and split, the RNGs from the seed."""
+        from its config, data, seed and split, the RNGs from the seed; ``select`` as there."""
         o = self.options
         return run_epochs(
             steps,
@@ -137,6 +139,7 @@ class KindRun:
             cancel=o.cancel,
             checkpoint_every=o.checkpoint_every,
             ranks=o.ranks,
+            select=select,
         )
 
     def provenance(

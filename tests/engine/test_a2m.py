@@ -20,7 +20,7 @@ from engine.errors import ConfigError, ModelFormatError
 from engine.generators import SampleRequest, open_generator
 from engine.generators.a2m import decode_a2m, encode_a2m, generate_a2m, load_a2m
 from engine.generators.base import CapabilityError
-from engine.metrics.a2m_eval import NOT_APPLICABLE, evaluate_a2m
+from engine.metrics.a2m_eval import NOT_APPLICABLE, evaluate_a2m, prior_accuracy
 from engine.metrics.by_kind import evaluate_generator
 from engine.metrics.classifier import Classifier, train_classifier
 from engine.metrics.evaluate import evaluate
@@ -507,6 +507,28 @@ def test_warm_start_begins_from_the_saved_weights_and_names_them(
         train_a2m(
             procedural_clips, PROCEDURAL_ACTIONS, tmp_path / "w", tiny_a2m_config(hidden=16), warm_start=wider
         )
+
+
+def test_a_run_chosen_by_its_prior_samples_keeps_the_best_scoring_epoch(
+    procedural_clips: list[Motion], classifier: Classifier, tmp_path: Path, torch_single_thread: None
+) -> None:
+    """Scored at every epoch by the classifier's accuracy on its prior samples, the folder holds the
+    epoch that scored best (the log's ``select_score``; the provenance names it), and its weights score
+    that again."""
+    names, skeleton = list(PROCEDURAL_ACTIONS), procedural_clips[0].skeleton
+
+    def score(model: A2mModel) -> float:
+        return prior_accuracy(model, skeleton, names, classifier, n_per_action=8, seed=3)
+
+    out = tmp_path / "chosen"
+    config = tiny_a2m_config(epochs=4)
+    train_a2m(procedural_clips, names, out, config, device="cpu", checkpoint_every=1, select=score)
+    rows = list(csv.DictReader((out / "train_log.csv").read_text().splitlines()))
+    scores = [float(r["select_score"]) for r in rows]
+    assert len(scores) == 4 and all(0.0 <= s <= 1.0 for s in scores)
+    loaded = load_a2m(out)
+    assert loaded.provenance["selected_epoch"] == int(np.argmax(scores)) + 1
+    assert score(loaded.model) == max(scores)
 
 
 def test_the_bench_refuses_to_warm_start_from_a_model_that_saw_held_out_clips(

@@ -152,3 +152,32 @@ def test_a_checkpoint_written_before_optimisers_were_a_list_still_resumes(tmp_pa
     run = _run(tmp_path, again, ToyConfig(epochs=3), resume=True)
     assert again.steps_seen == 5 and len(run.rows) == 3
     assert again.optimizers[0].state_dict()["state"][0]["step"] == 15  # Adam's count carried over
+
+
+def test_select_keeps_the_best_scoring_epoch_across_a_resume(tmp_path: Path) -> None:
+    """A score that peaks at epoch 3 of 6 (checked every epoch): the modules end with the weights they
+    had after epoch 3 (those of a plain 3-epoch run), the log has the scores, and a run stopped after
+    epoch 4 and resumed still ends on epoch 3's weights."""
+    plain = ToySteps()
+    _run(tmp_path / "plain", plain, ToyConfig(epochs=3))
+    peak = {1: 0.1, 2: 0.5, 3: 0.9, 4: 0.2, 5: 0.3, 6: 0.8}
+
+    def scorer(steps: ToySteps) -> object:
+        return lambda: peak[steps.steps_seen // 5]
+
+    chosen = ToySteps()
+    run = _run(tmp_path / "chosen", chosen, ToyConfig(epochs=6), checkpoint_every=1, select=scorer(chosen))
+    assert run.selected_epoch == 3
+    np.testing.assert_array_equal(_weights(chosen), _weights(plain))
+    rows = list(csv.DictReader(io.StringIO((tmp_path / "chosen" / "train_log.csv").read_text())))
+    assert [float(r["select_score"]) for r in rows] == [peak[e] for e in range(1, 7)]
+
+    first = ToySteps()
+    _run(tmp_path / "split", first, ToyConfig(epochs=4), checkpoint_every=1, select=scorer(first))
+    later = ToySteps()
+    later.steps_seen = 20
+    resumed = _run(
+        tmp_path / "split", later, ToyConfig(epochs=6), checkpoint_every=1, select=scorer(later), resume=True
+    )
+    assert resumed.selected_epoch == 3
+    np.testing.assert_array_equal(_weights(later), _weights(plain))
