@@ -265,7 +265,9 @@ def selected_line(epoch: int | None, epochs: int) -> list[str]:
         return []
     return [
         f"- Weights of epoch {epoch} of {epochs}: the checkpoint whose {SELECT_SAMPLES} prior samples per "
-        "action the classifier read best (no held-out clip enters the choice)."
+        "action the evaluation's classifier read best (samples of their own seed; no held-out clip enters "
+        "the choice, but the accuracy above is read by the same classifier, so it is the chosen epoch's "
+        "best case)."
     ]
 
 
