@@ -18,6 +18,7 @@ import platform
 import shutil
 import sys
 import time
+from functools import partial
 from pathlib import Path
 from typing import Any
 
@@ -33,7 +34,7 @@ from engine.fileio import atomic_write_text
 from engine.generators.a2m import load_a2m
 from engine.metrics.a2m_eval import evaluate_a2m, prior_accuracy
 from engine.metrics.classifier import load_classifier
-from engine.model.a2m import A2mConfig, A2mModel
+from engine.model.a2m import A2mConfig
 from engine.motion.datasets import load_folder
 from engine.train.a2m_loop import train_a2m
 
@@ -105,11 +106,10 @@ def main() -> int:
         start = None if args.warm_start is None else warm_start_from(args.warm_start, test_clips, load_a2m)
         select = None
         if args.select:
-            judge = load_classifier(args.classifier)
-
-            def select(model: A2mModel) -> float:
-                return prior_accuracy(model, dataset.skeleton, names, judge, SELECT_SAMPLES, args.seed)
-
+            select = partial(
+                prior_accuracy, skeleton=dataset.skeleton, action_names=names,
+                classifier=load_classifier(args.classifier), n_per_action=SELECT_SAMPLES, seed=args.seed,
+            )  # fmt: skip
         result = train_a2m(
             train_clips,
             names,
