@@ -42,7 +42,6 @@ ROOT = Path(__file__).resolve().parents[1]
 DEFAULT_OUT = ROOT / "resources" / "models" / "bandai2-a2m"
 CLASSIFIER = ROOT / "resources" / "models" / "bandai2-odmo" / "classifier"
 SHIPPED = ("model.safetensors", "model.json", "latent_bank.npz", "train_log.csv")
-SELECT_SAMPLES = 20  # prior samples per action that score a checkpoint (--select)
 
 
 def parse_args() -> argparse.Namespace:
@@ -61,8 +60,10 @@ def parse_args() -> argparse.Namespace:
     p.add_argument(
         "--select",
         action="store_true",
-        help=f"keep the checkpoint whose {SELECT_SAMPLES} prior samples per action the classifier reads best",
+        help="keep the checkpoint whose prior samples (--select-samples) the classifier reads best",
     )
+    p.add_argument("--select-samples", type=int, default=50, help="prior samples per action scoring an epoch")
+    p.add_argument("--checkpoint-every", type=int, default=10, help="epochs between checkpoints (and scores)")
     p.add_argument("--kl-weight", type=float, default=0.001)
     p.add_argument("--trajectory-weight", type=float, default=0.8)
     p.add_argument("--seed", type=int, default=0)
@@ -108,7 +109,7 @@ def main() -> int:
         if args.select:
             select = partial(
                 prior_accuracy, skeleton=dataset.skeleton, action_names=names,
-                classifier=load_classifier(args.classifier), n_per_action=SELECT_SAMPLES, seed=args.seed,
+                classifier=load_classifier(args.classifier), n_per_action=args.select_samples, seed=args.seed,
             )  # fmt: skip
         result = train_a2m(
             train_clips,
@@ -121,6 +122,7 @@ def main() -> int:
             progress=show,
             warm_start=start,
             select=select,
+            checkpoint_every=args.checkpoint_every,
         )
         summary = {
             "train_seconds": result.train_seconds,
@@ -128,6 +130,7 @@ def main() -> int:
             "n_train": result.n_train,
             "n_val": result.n_val,
             "torch_threads": torch.get_num_threads(),
+            "select_samples": args.select_samples if args.select else None,
         }
         atomic_write_text(work / "train_summary.json", json.dumps(summary, indent=2))
     summary = json.loads((work / "train_summary.json").read_text())
@@ -237,7 +240,7 @@ def model_card(
         f"{summary['torch_threads']} torch thread ({platform.processor() or platform.machine()}, a machine "
         "shared with other jobs).",
         *warm_start_line(summary.get("warm_start")),
-        *selected_line(summary.get("selected_epoch"), config.epochs),
+        *selected_line(summary.get("selected_epoch"), config.epochs, summary.get("select_samples")),
         f"- Settings: hidden {config.hidden}, z {config.latent_dim} per frame, {config.gen_layers}-layer "
         f"generator GRU, window {config.window} frames at {config.fps:g} fps; λ_KL {config.kl_weight:g}, "
         f"λ_trajec {config.trajectory_weight:g} (the released HumanAct12 configuration; the paper's "
@@ -259,12 +262,12 @@ def model_card(
     return "\n".join(lines)
 
 
-def selected_line(epoch: int | None, epochs: int) -> list[str]:
+def selected_line(epoch: int | None, epochs: int, samples: int | None) -> list[str]:
     """The card's line on the epoch chosen by the prior's samples, if the run chose one."""
     if epoch is None:
         return []
     return [
-        f"- Weights of epoch {epoch} of {epochs}: the checkpoint whose {SELECT_SAMPLES} prior samples per "
+        f"- Weights of epoch {epoch} of {epochs}: the checkpoint whose {samples} prior samples per "
         "action the evaluation's classifier read best (samples of their own seed; no held-out clip enters "
         "the choice, but the accuracy above is read by the same classifier, so it is the chosen epoch's "
         "best case)."
