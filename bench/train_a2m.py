@@ -18,6 +18,7 @@ import platform
 import shutil
 import sys
 import time
+from collections.abc import Sequence
 from functools import partial
 from pathlib import Path
 from typing import Any
@@ -33,15 +34,17 @@ from bench.warm_start import warm_start_from, warm_start_line
 from engine.fileio import atomic_write_text
 from engine.generators.a2m import load_a2m
 from engine.metrics.a2m_eval import evaluate_a2m, prior_accuracy
-from engine.metrics.classifier import load_classifier
+from engine.metrics.classifier import Classifier, load_classifier, train_classifier
 from engine.model.a2m import A2mConfig
 from engine.motion.datasets import load_folder
+from engine.motion.motion import Motion
 from engine.train.a2m_loop import train_a2m
 
 ROOT = Path(__file__).resolve().parents[1]
 DEFAULT_OUT = ROOT / "resources" / "models" / "bandai2-a2m"
 CLASSIFIER = ROOT / "resources" / "models" / "bandai2-odmo" / "classifier"
 SHIPPED = ("model.safetensors", "model.json", "latent_bank.npz", "train_log.csv")
+SELECT_CLASSIFIER = "select_classifier"  # --work subfolder of the classifier that scores checkpoints
 
 
 def parse_args() -> argparse.Namespace:
@@ -105,11 +108,13 @@ def main() -> int:
                 print(f"epoch {p.epoch}/{p.epochs} {losses} eta {p.eta_s / 60:.0f} min", flush=True)
 
         start = None if args.warm_start is None else warm_start_from(args.warm_start, test_clips, load_a2m)
-        select = None
+        select, chooser = None, None
         if args.select:
+            judge = selection_classifier(work, train_clips, names, args.seed)
+            chooser = {"samples": args.select_samples, "classifier_accuracy": judge.test_accuracy}
             select = partial(
                 prior_accuracy, skeleton=dataset.skeleton, action_names=names,
-                classifier=load_classifier(args.classifier), n_per_action=args.select_samples, seed=args.seed,
+                classifier=judge, n_per_action=args.select_samples, seed=args.seed,
             )  # fmt: skip
         result = train_a2m(
             train_clips,
@@ -130,7 +135,7 @@ def main() -> int:
             "n_train": result.n_train,
             "n_val": result.n_val,
             "torch_threads": torch.get_num_threads(),
-            "select_samples": args.select_samples if args.select else None,
+            "select": chooser,
         }
         atomic_write_text(work / "train_summary.json", json.dumps(summary, indent=2))
     summary = json.loads((work / "train_summary.json").read_text())
@@ -240,7 +245,7 @@ def model_card(
         f"{summary['torch_threads']} torch thread ({platform.processor() or platform.machine()}, a machine "
         "shared with other jobs).",
         *warm_start_line(summary.get("warm_start")),
-        *selected_line(summary.get("selected_epoch"), config.epochs, summary.get("select_samples")),
+        *selected_line(summary.get("selected_epoch"), config.epochs, summary.get("select")),
         f"- Settings: hidden {config.hidden}, z {config.latent_dim} per frame, {config.gen_layers}-layer "
         f"generator GRU, window {config.window} frames at {config.fps:g} fps; λ_KL {config.kl_weight:g}, "
         f"λ_trajec {config.trajectory_weight:g} (the released HumanAct12 configuration; the paper's "
@@ -262,15 +267,26 @@ def model_card(
     return "\n".join(lines)
 
 
-def selected_line(epoch: int | None, epochs: int, samples: int | None) -> list[str]:
+def selection_classifier(work: Path, clips: Sequence[Motion], names: list[str], seed: int) -> Classifier:
+    """The classifier that scores checkpoints for ``--select``: trained once into ``work`` on the training
+    ``clips`` alone, with the evaluation classifier's settings but another seed (its own weights and
+    validation clips), so the evaluation's classifier does not choose the epoch it then reads."""
+    folder = work / SELECT_CLASSIFIER
+    if not (folder / "classifier.json").is_file():
+        train_classifier(clips, names, folder, epochs=20, lr_floor=1.0, seed=seed + 1)
+    return load_classifier(folder)
+
+
+def selected_line(epoch: int | None, epochs: int, chooser: dict[str, Any] | None) -> list[str]:
     """The card's line on the epoch chosen by the prior's samples, if the run chose one."""
-    if epoch is None:
+    if epoch is None or chooser is None:
         return []
     return [
-        f"- Weights of epoch {epoch} of {epochs}: the checkpoint whose {samples} prior samples per "
-        "action the evaluation's classifier read best (samples of their own seed; no held-out clip enters "
-        "the choice, but the accuracy above is read by the same classifier, so it is the chosen epoch's "
-        "best case)."
+        f"- Weights of epoch {epoch} of {epochs}: the checkpoint whose {chooser['samples']} prior samples "
+        "per action a selection classifier of the run's own read best (the evaluation classifier's settings "
+        "and another seed, trained on the training clips; accuracy "
+        f"{chooser['classifier_accuracy']:.3f} on its validation windows). Neither a held-out clip nor the "
+        "evaluation's classifier chooses the epoch."
     ]
 
 
