@@ -34,7 +34,7 @@ from bench.warm_start import warm_start_from, warm_start_line
 from engine.fileio import atomic_write_text
 from engine.generators.a2m import load_a2m
 from engine.metrics.a2m_eval import evaluate_a2m, prior_accuracy
-from engine.metrics.classifier import Classifier, load_classifier, train_classifier
+from engine.metrics.classifier import META_FILE, Classifier, load_classifier, train_classifier
 from engine.model.a2m import A2mConfig
 from engine.motion.datasets import load_folder
 from engine.motion.motion import Motion
@@ -110,7 +110,8 @@ def main() -> int:
         start = None if args.warm_start is None else warm_start_from(args.warm_start, test_clips, load_a2m)
         select, chooser = None, None
         if args.select:
-            judge = selection_classifier(work, train_clips, names, args.seed)
+            evaluation = load_classifier(args.classifier)
+            judge = selection_classifier(work, train_clips, names, evaluation, args.seed)
             chooser = {"samples": args.select_samples, "classifier_accuracy": judge.test_accuracy}
             select = partial(
                 prior_accuracy, skeleton=dataset.skeleton, action_names=names,
@@ -267,13 +268,19 @@ def model_card(
     return "\n".join(lines)
 
 
-def selection_classifier(work: Path, clips: Sequence[Motion], names: list[str], seed: int) -> Classifier:
+def selection_classifier(
+    work: Path, clips: Sequence[Motion], names: list[str], evaluation: Classifier, seed: int
+) -> Classifier:
     """The classifier that scores checkpoints for ``--select``: trained once into ``work`` on the training
-    ``clips`` alone, with the evaluation classifier's settings but another seed (its own weights and
+    ``clips`` alone, with the ``evaluation`` classifier's settings but the next seed (its own weights and
     validation clips), so the evaluation's classifier does not choose the epoch it then reads."""
     folder = work / SELECT_CLASSIFIER
-    if not (folder / "classifier.json").is_file():
-        train_classifier(clips, names, folder, epochs=20, lr_floor=1.0, seed=seed + 1)
+    if not (folder / META_FILE).is_file():
+        c = evaluation.config
+        train_classifier(
+            clips, names, folder, window=c.window, fps=c.fps, epochs=c.epochs, batch_size=c.batch_size,
+            stride=c.stride, lr_floor=c.lr_floor, seed=seed + 1,
+        )  # fmt: skip
     return load_classifier(folder)
 
 

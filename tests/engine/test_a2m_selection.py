@@ -15,16 +15,17 @@ from tests.fixtures.procedural import PROCEDURAL_ACTIONS
 def test_epochs_are_chosen_by_a_classifier_trained_once_with_another_seed(
     tmp_path: Path, procedural_clips: list[Motion]
 ) -> None:
-    judge = selection_classifier(tmp_path, procedural_clips, PROCEDURAL_ACTIONS, seed=0)
-    weights = tmp_path / SELECT_CLASSIFIER / WEIGHTS_FILE
-    saved = weights.read_bytes()
-    again = selection_classifier(tmp_path, procedural_clips, PROCEDURAL_ACTIONS, seed=0)
-    assert weights.read_bytes() == saved  # read back, not trained again
-    assert again.test_accuracy == judge.test_accuracy
-    assert judge.test_accuracy >= 0.75  # it learnt the three procedural actions (chance: 0.33)
     evaluation = train_classifier(
         procedural_clips, PROCEDURAL_ACTIONS, tmp_path / "evaluation", epochs=20, lr_floor=1.0, seed=0
     )
+    judge = selection_classifier(tmp_path, procedural_clips, PROCEDURAL_ACTIONS, evaluation, seed=0)
+    weights = tmp_path / SELECT_CLASSIFIER / WEIGHTS_FILE
+    saved = weights.read_bytes()
+    again = selection_classifier(tmp_path, procedural_clips, PROCEDURAL_ACTIONS, evaluation, seed=0)
+    assert weights.read_bytes() == saved  # read back, not trained again
+    assert again.test_accuracy == judge.test_accuracy
+    assert judge.test_accuracy >= 0.75  # it learnt the three procedural actions (chance: 0.33)
+    assert judge.config == evaluation.config  # the evaluation classifier's settings
     ours, theirs = judge.net.state_dict(), evaluation.net.state_dict()
     assert ours.keys() == theirs.keys()
     assert any(not torch.equal(ours[k], theirs[k]) for k in ours)
