@@ -413,7 +413,7 @@ def _data_arguments(p: argparse.ArgumentParser) -> None:
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     """Add the model sub-commands to ``odmo``."""
-    p = subparsers.add_parser("train", help="train a model (ODMO, Action2Motion, MoDi) on labelled clips")
+    p = subparsers.add_parser("train", help="train a model (ODMO, Action2Motion, MoDi, DVGAN)")
     _data_arguments(p)
     p.add_argument("--out", type=Path, required=True, help="model folder to write")
     p.add_argument("--epochs", type=int, default=None, help="epochs of 2,048 windows (default: config's)")

@@ -13,7 +13,7 @@ from scipy.special import logsumexp
 from engine.errors import CancelledError, ConfigError
 from engine.generate._decode import as_codes
 from engine.modelio import LoadedModel
-from engine.motion.datasets import drop_extra_joints
+from engine.motion.datasets import conform_to
 from engine.motion.motion import Motion
 from engine.motion.resample import resample_motion
 from engine.train.windows import crop_windows, prepare_clips
@@ -21,21 +21,6 @@ from engine.train.windows import crop_windows, prepare_clips
 log = logging.getLogger(__name__)
 
 BANK_BATCH = 256  # windows encoded together when building a bank: the memory bound beside the codes
-
-
-def conform(loaded: LoadedModel, motion: Motion) -> Motion:
-    """``motion`` on the model's skeleton: extra joints (e.g. Bandai's ground-projected ``joint_Root``)
-    are dropped by name when every model joint is present; ConfigError naming both joint lists otherwise."""
-    ours, theirs = loaded.skeleton, motion.skeleton
-    if not ours.same_topology(theirs):
-        motion = drop_extra_joints(motion, ours.names)
-    if not ours.same_topology(motion.skeleton):
-        source = motion.meta.get("source", motion.meta.get("path", "the motion"))
-        raise ConfigError(
-            f"{source}: skeleton does not match the model's ({theirs.n_joints} joints "
-            f"[{', '.join(theirs.names)}] vs {ours.n_joints} joints [{', '.join(ours.names)}])"
-        )
-    return motion
 
 
 def guess_action(loaded: LoadedModel, code: np.ndarray) -> int | None:
@@ -59,7 +44,8 @@ def encode_clips(loaded: LoadedModel, motions: Sequence[Motion]) -> tuple[np.nda
     if not motions:
         raise ConfigError("no motions to encode")
     # The label only routes clips through the training preparation; it does not affect the codes.
-    unlabelled = [dataclasses.replace(conform(loaded, m), action=loaded.action_names[0]) for m in motions]
+    first = loaded.action_names[0]
+    unlabelled = [dataclasses.replace(conform_to(loaded.skeleton, m), action=first) for m in motions]
     prepared = prepare_clips(unlabelled, loaded.action_names, loaded.fps, loaded.window)
     window = crop_windows(prepared, np.arange(len(motions)), None)
     model = loaded.model
@@ -110,7 +96,7 @@ def window_starts(n_frames: int, window: int, stride: int) -> np.ndarray:
 
 def _at_model_rate(loaded: LoadedModel, motion: Motion) -> Motion:
     """``motion`` on the model's skeleton at the model's frame rate."""
-    moved = conform(loaded, motion)
+    moved = conform_to(loaded.skeleton, motion)
     return resample_motion(moved, loaded.fps) if abs(moved.fps - loaded.fps) > 1e-6 else moved
 
 
@@ -212,7 +198,7 @@ def bank_window(loaded: LoadedModel, clip: Motion, start: int | None = None) -> 
         if not 0 <= start <= last:
             raise ConfigError(f"window start {start} is outside the clip's 0..{last}")
         clip = clip.with_joints(clip.joints[start : start + loaded.window])
-    moved = dataclasses.replace(conform(loaded, clip), action=loaded.action_names[0])
+    moved = dataclasses.replace(conform_to(loaded.skeleton, clip), action=loaded.action_names[0])
     prepared = prepare_clips([moved], loaded.action_names, loaded.fps, loaded.window)
     window = crop_windows(prepared, np.arange(1), None)
     length = int(window.mask[0].sum())

@@ -30,6 +30,7 @@ from engine.generators.base import (
 from engine.latent.bank import LatentBank
 from engine.model.a2m import A2mConfig, A2mModel
 from engine.modelio import LoadedFolder, read_kind_folder
+from engine.motion.datasets import conform_to
 from engine.motion.motion import Motion
 from engine.train.windows import prepare_clips, windows_at
 
@@ -136,8 +137,7 @@ def decode_a2m(
 def encode_a2m(loaded: LoadedA2m, motion: Motion, action: int | str) -> np.ndarray:
     """The code (code_dim,) of ``motion``'s posterior-mean z sequence under ``action`` (its centre window
     at the model's frame rate, canonical like the training windows)."""
-    if not motion.skeleton.same_topology(loaded.skeleton):
-        raise ConfigError(f"the motion's skeleton is not the model's ({loaded.skeleton.n_joints} joints)")
+    motion = conform_to(loaded.skeleton, motion)
     index = action_index(loaded, action)
     clip = Motion(motion.joints, motion.fps, loaded.skeleton, action=loaded.action_names[index])
     prepared = prepare_clips([clip], loaded.action_names, loaded.fps, loaded.window)

@@ -32,6 +32,7 @@ from engine.model.dvgan import DvganConfig, DvganNetwork
 from engine.model.dvgan_features import feature_joints, motion_features
 from engine.modelio import LoadedFolder, read_kind_folder
 from engine.motion.contact import foot_joints
+from engine.motion.datasets import conform_to
 from engine.motion.ik import plant_feet
 from engine.motion.motion import Motion
 from engine.motion.resample import resample_motion
@@ -294,8 +295,7 @@ class DvganGenerator(FolderGenerator):
             raise ConfigError(f"n must be at least 1, got {n}")
         if not 1 <= frames <= MAX_FRAMES:
             raise ConfigError(f"frames must lie in 1..{MAX_FRAMES}, got {frames}")
-        if not prefix.skeleton.same_topology(self.skeleton):
-            raise ConfigError(f"the prefix's skeleton is not the model's ({self.skeleton.n_joints} joints)")
+        prefix = conform_to(self.skeleton, prefix)
         phrase = self.phrase(action or prefix.action)
         clip = prefix if abs(prefix.fps - self.fps) < 1e-6 else resample_motion(prefix, self.fps)
         if len(clip.joints) < 2:

@@ -400,6 +400,22 @@ def drop_extra_joints(motion: Motion, names: Sequence[str]) -> Motion:
     return motion.without_joints([n for n in have if n not in names])
 
 
+def conform_to(skeleton: Skeleton, motion: Motion) -> Motion:
+    """``motion`` on ``skeleton``'s joints: extra joints (e.g. Bandai's ground-projected ``joint_Root``) are
+    dropped by name when every joint of ``skeleton`` is present; ConfigError naming the file and both joint
+    lists otherwise."""
+    if not skeleton.same_topology(motion.skeleton):
+        motion = drop_extra_joints(motion, skeleton.names)
+    if not skeleton.same_topology(motion.skeleton):
+        theirs = motion.skeleton
+        source = motion.meta.get("source", motion.meta.get("path", "the motion"))
+        raise ConfigError(
+            f"{source}: skeleton does not match the model's ({theirs.n_joints} joints "
+            f"[{', '.join(theirs.names)}] vs {skeleton.n_joints} joints [{', '.join(skeleton.names)}])"
+        )
+    return motion
+
+
 _Parsed = tuple[np.ndarray, float, Skeleton]
 
 
