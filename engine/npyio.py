@@ -69,6 +69,6 @@ def load_npz(source: str | Path | bytes) -> dict[str, np.ndarray]:
                     arrays[name] = _read_array(stream, member.file_size)
             return arrays
     except (zipfile.BadZipFile, zlib.error, EOFError, KeyError, NotImplementedError) as exc:
-        raise ValueError(f"not a readable .npz archive ({type(exc).__name__}: {exc})") from None
+        raise ValueError(f"{type(exc).__name__}: {exc}") from None
     finally:
         handle.close()
