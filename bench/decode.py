@@ -8,10 +8,10 @@ Reference rows: the paper's modules built plainly (``plain_decode``: the referen
 nn.LSTM call per frame in a Python loop) on the same random weights, timed beside OdmoModel.decode in the
 same run, with the speed ratio and the largest difference of their joints. Aim: < 6 ms, >= 5,000/s.
 The reduced-precision rows decode the bundled model's bank codes against float32 in the same run (speed
-ratio, largest joint difference): OdmoModel.decode under bfloat16 autocast; int8 dynamic quantization
-(quantize_dynamic of every nn.LSTM and nn.Linear) of the paper's modules, against them in float32, since
-the fused decoder loop reads float weights that quantize_dynamic cannot reach; and int8-rounded weights
-in float32 arithmetic, the accuracy int8 weights allow at best.
+ratio, largest joint difference): OdmoModel.decode under bfloat16 and float16 autocast; int8 dynamic
+quantization (quantize_dynamic of every nn.LSTM and nn.Linear) of the paper's modules, against them in
+float32, since the fused decoder loop reads float weights that quantize_dynamic cannot reach; and weights
+rounded to int8, bfloat16 or float16 in float32 arithmetic, the accuracy each format allows at best.
 """
 
 from __future__ import annotations
@@ -200,17 +200,25 @@ def int8_dynamic(model: OdmoModel) -> OdmoModel:
         return torch.ao.quantization.quantize_dynamic(copy.deepcopy(model), {nn.LSTM, nn.Linear}, torch.qint8)
 
 
+ROUNDINGS = ("int8", "bfloat16", "float16")  # weight formats whose rounding alone is measured
+
+
 @torch.no_grad()
-def int8_rounded(model: OdmoModel) -> OdmoModel:
-    """A copy of ``model`` whose nn.LSTM and nn.Linear weights are rounded to int8, one symmetric scale
-    per output row, and kept in float32: int8 weights with exact activations, int8's best accuracy."""
+def rounded_weights(model: OdmoModel, fmt: str) -> OdmoModel:
+    """A copy of ``model`` whose nn.LSTM and nn.Linear weights are rounded to ``fmt`` (one of ROUNDINGS;
+    int8: one symmetric scale per output row) and kept in float32: that format's weights with exact
+    arithmetic, the best accuracy the format allows."""
     rounded = copy.deepcopy(model)
     for module in rounded.modules():
         if isinstance(module, nn.LSTM | nn.Linear):
             for name, weight in module.named_parameters():
-                if name.startswith("weight"):
+                if not name.startswith("weight"):
+                    continue
+                if fmt == "int8":
                     scale = weight.abs().amax(1, keepdim=True).clamp_min(1e-12) / 127
                     weight.copy_((weight / scale).round() * scale)
+                else:
+                    weight.copy_(weight.to(getattr(torch, fmt)).float())
     return rounded
 
 
@@ -237,15 +245,15 @@ def _largest_mm(error: torch.Tensor, digits: int = 1) -> float:
 def _reduced_precision(repeats: int) -> list[dict[str, object]]:
     """The bundled model's decode of its bank codes in reduced precision against float32 in the same run,
     at batch 1, 2, 64 and 1024, every joint on the skeleton's bone lengths: OdmoModel.decode under
-    bfloat16 autocast; the paper's modules int8 dynamically quantized, against the same modules in
-    float32; and the int8-rounded weights in float32 arithmetic (accuracy only)."""
+    bfloat16 and float16 autocast; the paper's modules int8 dynamically quantized, against the same
+    modules in float32; and weights rounded to each of ROUNDINGS in float32 arithmetic (accuracy only)."""
     loaded = load_model(BUNDLED.parent)
     model, bank = loaded.model, loaded.bank
     model.attach_skeleton(loaded.skeleton)
-    quantized, rounded_model = int8_dynamic(model), int8_rounded(model)
-    bf16 = "bundled model decode, bfloat16 autocast" + (
-        "" if native_bfloat16("cpu") else " (no bfloat16 instructions)"
-    )
+    quantized = int8_dynamic(model)
+    rounded_models = {fmt: rounded_weights(model, fmt) for fmt in ROUNDINGS}
+    native = "" if native_bfloat16("cpu") else " (no bfloat16 instructions)"
+    half = "" if torch.ops.mkldnn._is_mkldnn_fp16_supported() else " (no float16 instructions)"
     engine = torch.backends.quantized.engine
     int8 = f"bundled model, the paper's modules int8 (quantize_dynamic, {engine}; vs them in float32)"
     rows: list[dict[str, object]] = []
@@ -259,18 +267,26 @@ def _reduced_precision(repeats: int) -> list[dict[str, object]]:
             plain = _timed(lambda z=z, a=a, e=e: plain_decode(model, z, a, e), n)
             reduced = model.projection(plain_decode(quantized, z, a, e))
             i8 = _timed(lambda z=z, a=a, e=e: plain_decode(quantized, z, a, e), n)
-            rounded = rounded_model.decode(z, a, e)[0]
-            with bfloat16_autocast("cpu"):
-                b16_joints = model.decode(z, a, e)[0].float()
-                b16 = _timed(lambda z=z, a=a, e=e: model.decode(z, a, e), n)
+            autocast = {}
+            for name, dtype in (("bfloat16", torch.bfloat16), ("float16", torch.float16)):
+                with bfloat16_autocast("cpu") if dtype == torch.bfloat16 else torch.autocast("cpu", dtype):
+                    joints = model.decode(z, a, e)[0].float()
+                    autocast[name] = (joints, _timed(lambda z=z, a=a, e=e: model.decode(z, a, e), n))
+            rounded = {fmt: r.decode(z, a, e)[0] for fmt, r in rounded_models.items()}
         rows += [
-            _precision_row(bf16, batch, b16, f32, b16_joints - exact),
+            _precision_row(f"bundled model decode, bfloat16 autocast{native}", batch,
+                           autocast["bfloat16"][1], f32, autocast["bfloat16"][0] - exact),
+            _precision_row(f"bundled model decode, float16 autocast{half}", batch,
+                           autocast["float16"][1], f32, autocast["float16"][0] - exact),
             _precision_row(int8, batch, i8, plain, reduced - exact),
+        ]  # fmt: skip
+        rows += [
             {
-                "what": "bundled model decode, int8-rounded weights in float32 (int8's best accuracy)",
+                "what": f"bundled model decode, {fmt}-rounded weights in float32 ({fmt}'s best accuracy)",
                 "batch": batch,
-                "max joint difference mm": _largest_mm(rounded - exact),
-            },
+                "max joint difference mm": _largest_mm(joints - exact),
+            }
+            for fmt, joints in rounded.items()
         ]
     return rows
 

@@ -7,7 +7,7 @@ import pytest
 import torch
 from torch import nn
 
-from bench.decode import int8_dynamic, int8_rounded, plain_decode
+from bench.decode import int8_dynamic, plain_decode, rounded_weights
 from engine.model.config import PAPER, OdmoConfig
 from engine.model.odmo import OdmoModel
 
@@ -44,7 +44,7 @@ def test_int8_rounded_weights_lie_on_an_int8_grid_per_row() -> None:
     largest magnitude / 127, within half a step of the original; biases and the original stay as they were."""
     model, *_ = _model_and_codes()
     before = {name: p.clone() for name, p in model.named_parameters()}
-    rounded = dict(int8_rounded(model).named_parameters())
+    rounded = dict(rounded_weights(model, "int8").named_parameters())
     weights = {n for n, m in model.named_modules() if isinstance(m, nn.LSTM | nn.Linear)}
     checked = 0
     for name, original in model.named_parameters():
@@ -61,6 +61,29 @@ def test_int8_rounded_weights_lie_on_an_int8_grid_per_row() -> None:
         else:
             torch.testing.assert_close(rounded[name], original, rtol=0, atol=0)
     assert checked >= 10  # the LSTMs' input and hidden weights and the Linear layers
+
+
+@pytest.mark.parametrize("fmt", ["bfloat16", "float16"])
+@torch.no_grad()
+def test_float_rounded_weights_are_the_formats_nearest_values(fmt: str) -> None:
+    """Each nn.LSTM / nn.Linear weight of the copy is representable in ``fmt`` and within half a unit in
+    the last place of the original (bfloat16: 2**-8 relative, float16: 2**-11); the rest is untouched."""
+    model, *_ = _model_and_codes()
+    rounded = dict(rounded_weights(model, fmt).named_parameters())
+    weights = {n for n, m in model.named_modules() if isinstance(m, nn.LSTM | nn.Linear)}
+    half_ulp = {"bfloat16": 2.0**-8, "float16": 2.0**-11}[fmt]
+    checked = 0
+    for name, original in model.named_parameters():
+        module, _, leaf = name.rpartition(".")
+        if module in weights and leaf.startswith("weight"):
+            dtype = getattr(torch, fmt)
+            torch.testing.assert_close(rounded[name].to(dtype).float(), rounded[name], rtol=0, atol=0)
+            assert bool(((rounded[name] - original).abs() <= half_ulp * original.abs() + 1e-7).all())
+            assert not torch.equal(rounded[name], original)
+            checked += 1
+        else:
+            torch.testing.assert_close(rounded[name], original, rtol=0, atol=0)
+    assert checked >= 10
 
 
 def test_int8_dynamic_quantizes_a_copy_that_plain_decode_runs() -> None:
