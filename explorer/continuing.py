@@ -21,7 +21,7 @@ from typing import TYPE_CHECKING
 from PySide6.QtWidgets import QFileDialog
 
 from explorer.decoding import condition
-from explorer.encoding import MOTION_FILTER
+from explorer.encoding import MOTION_FILTER, file_error
 from explorer.requests import label_index
 from explorer.state import Decoded
 from explorer.workers import Cancel, Progress
@@ -221,23 +221,33 @@ class Continuation:
             self.play_files(paths)
 
     def play_files(self, paths: list[str]) -> None:
-        """Read ``paths`` in the background and play them as recorded, side by side."""
+        """Read ``paths`` in the background and play them as recorded, side by side, on the model's joints
+        (a file with joints beyond them, such as Bandai's ``joint_Root``, plays without those); the files
+        that cannot be read or are of another rig are named in one message."""
         if self.c.state.model is None:
             self.c.report_error("Cannot play the files", "no model is loaded (File ▸ Open model folder…)")
             return
         generator = self.c.generator
 
-        def job(progress: Progress, _c: Cancel) -> list[tuple[Path, Motion]]:
+        def job(progress: Progress, _c: Cancel) -> tuple[list[tuple[Path, Motion]], list[str]]:
+            from engine.errors import OdmoError
+            from engine.motion.datasets import conform_to
             from engine.motion.formats import read_motion
 
-            out = []
+            read, failed = [], []
             for j, name in enumerate(paths):
                 progress(f"Reading {Path(name).name}", j / len(paths))
-                out.append((Path(name), read_motion(name)))
-            return out
+                try:
+                    read.append((Path(name), conform_to(generator.skeleton, read_motion(name))))
+                except (OdmoError, OSError, ValueError) as exc:
+                    failed.append(file_error(name, exc))
+            return read, failed
 
-        def done(read: list[tuple[Path, Motion]]) -> None:
-            if self.c.state.model is not generator:
+        def done(result: tuple[list[tuple[Path, Motion]], list[str]]) -> None:
+            read, failed = result
+            if failed:
+                self.c.report_error("Some files could not be played", "\n".join(failed))
+            if not read or self.c.state.model is not generator:
                 return
             self.c.state.shown = tuple(
                 Decoded(m, f"{p.name} (file)", None, label_index(generator, m)) for p, m in read

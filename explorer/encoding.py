@@ -21,6 +21,7 @@ from explorer.state import Decoded, ExtraPoints
 
 if TYPE_CHECKING:
     from engine.generate import WindowCodes
+    from engine.generators.base import Generator
     from explorer.controller import Controller
 
 MOTION_FILTER = "Motion files (*.bvh *.npz *.npy);;All files (*)"
@@ -29,11 +30,12 @@ MAX_PLAYED_WINDOWS = 12
 
 @dataclass(frozen=True, eq=False)
 class EncodedClip:
-    """One encoded file: its path, its windows' codes and the decoded windows."""
+    """One encoded file: its path, its windows' codes and the decoded windows, by ``generator``."""
 
     path: Path
     windows: WindowCodes
     decoded: list[Decoded]
+    generator: Generator
 
 
 class ClipEncoder(QObject):
@@ -85,9 +87,9 @@ class ClipEncoder(QObject):
                     windows = loaded.encode_windows(motion, stride)
                     decoded = _decode_windows(loaded, Path(name), windows)
                 except (OdmoError, OSError, ValueError) as exc:
-                    failed.append(f"{Path(name).name}: {exc}")
+                    failed.append(file_error(name, exc))
                     continue
-                done.append(EncodedClip(Path(name), windows, decoded))
+                done.append(EncodedClip(Path(name), windows, decoded, loaded))
             return done, failed
 
         self.c.run_task(f"Encoding {len(paths)} file(s)", job, self._encoded)
@@ -96,6 +98,7 @@ class ClipEncoder(QObject):
         done, failed = result
         if failed:
             self.c.report_error("Some files could not be encoded", "\n".join(failed))
+        done = [clip for clip in done if clip.generator is self.c.state.model]  # not another model's codes
         if not done:
             return
         self.clips = done
@@ -116,7 +119,9 @@ class ClipEncoder(QObject):
         )
 
     def show(self) -> None:
-        """Put the encoded codes on the map (diamonds in the guessed action's colour) and their paths."""
+        """Put the encoded codes on the map (diamonds in the guessed action's colour) and their paths; the
+        codes of a model no longer loaded are forgotten."""
+        self.clips = [clip for clip in self.clips if clip.generator is self.c.state.model]
         projection = self.c.projection
         if projection is None or not self.clips:
             self.c.window.latent_map.set_paths([])
@@ -132,6 +137,12 @@ class ClipEncoder(QObject):
                 paths.append(xy[start : start + n])
             start += n
         self.c.window.latent_map.set_paths(paths)
+
+
+def file_error(name: str, exc: BaseException) -> str:
+    """The message of ``exc`` raised reading or using file ``name``, naming the file once."""
+    text, base = str(exc), Path(name).name
+    return text if base in text else f"{base}: {text}"
 
 
 def _decode_windows(loaded, path: Path, windows: WindowCodes) -> list[Decoded]:

@@ -110,6 +110,7 @@ class Loader:
         except Exception as exc:
             log.exception("showing %s failed", loaded.path)
             self.c.state.model = None
+            self.c.state.shown = ()  # nothing of either model keeps playing
             self._model_failed(exc)
             return
         remember_model(self.c.window.settings, loaded.path)

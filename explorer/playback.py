@@ -10,7 +10,7 @@ from PySide6.QtCore import QTimer
 
 from engine.motion.motion import Motion
 from engine.motion.ops import padded_joints, root_floor_path
-from explorer.scene import build_scene
+from explorer.scene import action_name, build_scene
 from explorer.state import Decoded
 
 if TYPE_CHECKING:
@@ -49,7 +49,9 @@ class Playback:
         from frame 0, unless ``keep_frame`` was set (a continuation plays on from the current frame)."""
         w = self.c.window
         keep, self.keep_frame = self.keep_frame, False
-        if not shown:
+        if not shown:  # nothing to play (e.g. another model opened): the old motions stop with it
+            self.played, self.rig = [], None
+            w.timeline.pause()
             return
         loaded = self.c.generator
         scene = build_scene(shown, self.c.state.layout, loaded.root_height, loaded.label_names)
@@ -134,8 +136,8 @@ class Playback:
         end = "" if head.end is None else " · end ({:.2f}, {:.2f}, {:.2f}) m".format(*np.ravel(head.end))
         note = f" · {head.note}" if head.note else ""
         w.show_status(
-            f"Playing {head.label}{more} · {head.motion.action}{mode}{end} · "
-            f"{first.n_frames} frames @ {first.fps:g} fps{note}"
+            f"Playing {head.label}{more} · {action_name(head, self.c.generator.label_names)}{mode}{end} · "
+            f"{first.n_frames} frames @ {first.fps:.4g} fps{note}"
         )
 
     def set_frame(self, frame: int) -> None:

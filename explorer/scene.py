@@ -45,9 +45,17 @@ def end_in_view(item: Decoded, root_height: float) -> np.ndarray | None:
     return end + origin + np.array([0.0, float(root_height), 0.0])
 
 
+def action_name(item: Decoded, action_names: Sequence[str]) -> str:
+    """The action ``item`` is shown as: a real clip's own label ("unlabelled" without one), else the label
+    it was decoded or guessed as."""
+    if item.real or not 0 <= item.action < len(action_names):
+        return item.motion.action or "unlabelled"
+    return action_names[item.action]
+
+
 def short_label(item: Decoded, action_names: Sequence[str]) -> str:
     """A few words over a skeleton: its action and what it is (real clip, step, sample …)."""
-    name = action_names[item.action] if 0 <= item.action < len(action_names) else item.motion.action
+    name = action_name(item, action_names)
     if item.real:
         return f"{name} (real)"
     words = item.label.split(" · ")[0].split()

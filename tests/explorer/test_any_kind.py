@@ -114,3 +114,29 @@ def test_every_enabled_selection_tool_works_on_an_a2m_model(
         procedural_clips[0].with_joints(procedural_clips[0].joints[:60])
     )
     np.testing.assert_allclose(c.state.extra.codes[0], code, atol=1e-4)
+
+
+def test_opening_another_model_forgets_the_codes_encoded_by_the_last(
+    qtbot, open_explorer, tiny_model_dir, tiny_a2m_dir, procedural_clips, tmp_path
+) -> None:
+    opened: Opened = open_explorer(tiny_model_dir)
+    window, c = opened.window, opened.controller
+    qtbot.waitUntil(lambda: c.state.model is not None, timeout=60_000)
+    clip = procedural_clips[0]
+    long = clip.with_joints(np.concatenate([clip.joints, clip.joints[::-1]]))  # two windows: a path
+    path = tmp_path / "long.npz"
+    write_motion(long, path)
+    with qtbot.waitSignal(c.shownChanged, timeout=60_000):
+        c.encoder.encode_files([str(path)])
+    assert c.state.extra is not None and len(c.state.extra.codes) >= 2 and window.latent_map._paths
+    errors: list[str] = []
+    c.errorOccurred.connect(errors.append)
+    with qtbot.waitSignal(c.modelLoaded, timeout=60_000):
+        c.loader.open_model(tiny_a2m_dir)  # its codes are 6-d, the ODMO model's 20-d
+    assert errors == [] and c.generator.kind == "a2m"
+    assert c.state.extra is None and not window.latent_map._paths and c.state.shown == ()
+    with qtbot.waitSignal(c.shownChanged, timeout=30_000):
+        click_map(qtbot, opened, c.state.embedding[isolated_points(c.state.embedding, 1)[0]])
+    assert c.state.shown[0].motion.n_joints == c.generator.skeleton.n_joints
+    qtbot.wait(300)  # a few playback ticks
+    assert errors == [] and window.timeline.is_playing() and window.timeline.frame() > 0

@@ -14,6 +14,9 @@ from PySide6.QtCore import Qt
 from engine.generators import open_generator
 from engine.generators.dvgan import DvganGenerator
 from engine.motion.formats import read_motion, write_motion
+from engine.motion.motion import Motion
+from engine.motion.resample import resample_motion
+from engine.motion.skeleton import Skeleton
 from explorer.continuing import FUTURES, frames_ahead
 from tests.explorer.conftest import Opened, close_message_boxes
 from tests.explorer.gestures import click_map, isolated_points, outside_view, played_points
@@ -172,21 +175,50 @@ def test_a_completion_that_fails_says_why_and_the_app_keeps_running(
     qtbot, opened: Opened, procedural_clips, tmp_path
 ) -> None:
     window, c = opened.window, opened.controller
-    clip = procedural_clips[1].without_joints([procedural_clips[1].skeleton.names[-1]])
+    clip = resample_motion(procedural_clips[1], 6 * procedural_clips[1].fps)  # 6 file frames a model frame
     play_file(qtbot, opened, clip, tmp_path)
     stop_at(qtbot, opened, 0)
     qtbot.mouseClick(button(opened, window.complete_action), Qt.MouseButton.LeftButton)
     assert "past the first frame" in window.status_label.text()  # nothing asked of the model
-    stop_at(qtbot, opened, 12)
+    stop_at(qtbot, opened, 1)  # two file frames: one at the model's rate
     with qtbot.waitSignal(c.errorOccurred, timeout=30_000) as error:
         qtbot.mouseClick(button(opened, window.complete_action), Qt.MouseButton.LeftButton)
-    assert "skeleton" in error.args[0]
-    assert close_message_boxes()
-    with qtbot.waitSignal(c.errorOccurred, timeout=30_000):
-        window.continue_action.trigger()
+    assert "at least 2 frames" in error.args[0]
     assert close_message_boxes()
     assert c.state.shown[0].motion.n_frames == clip.n_frames and window.isVisible()
     assert not window.keep_going_action.isChecked()
+
+
+def test_a_file_plays_on_the_models_joints_and_another_rig_is_refused_by_name(
+    qtbot, opened: Opened, procedural_clips, tmp_path
+) -> None:
+    window, c = opened.window, opened.controller
+    clip = procedural_clips[1]
+    skel = clip.skeleton
+    # A Bandai-style ground-projected root above the model's root joint, as the raw dataset files have.
+    grounded = Motion(
+        np.concatenate([clip.joints[:, :1] * np.float32([1, 0, 1]), clip.joints], axis=1),
+        clip.fps,
+        Skeleton(
+            ("Ground", *skel.names),
+            np.concatenate([[-1], np.where(skel.parents < 0, 0, skel.parents + 1)]),
+            np.concatenate([np.zeros((1, 3)), skel.offsets]),
+        ),
+    )
+    play_file(qtbot, opened, grounded, tmp_path)
+    [shown] = c.state.shown
+    assert shown.motion.skeleton.names == skel.names
+    np.testing.assert_allclose(shown.motion.joints, clip.joints, atol=1e-5)
+    assert "unlabelled (real)" in window.viewport.labels() and "None" not in window.status_label.text()
+
+    other = clip.without_joints([skel.names[-1]])
+    path = tmp_path / "other_rig.npz"
+    write_motion(other, path)
+    with qtbot.waitSignal(c.errorOccurred, timeout=30_000) as error:
+        window.latent_map.filesDropped.emit([str(path)])
+    assert "other_rig.npz" in error.args[0] and "skeleton does not match" in error.args[0]
+    assert close_message_boxes()
+    assert c.state.shown == (shown,)  # what played before plays on
 
 
 def test_an_odmo_model_has_complete_and_continue_off_with_the_reason(

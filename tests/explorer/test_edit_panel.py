@@ -69,7 +69,8 @@ def test_the_energy_slider_plays_the_engines_edit_of_the_clicked_code(
         a * directions[n].scale * directions[n].normal for n, a in ((style, -1.0), ("energy", 1.5))
     )
     np.testing.assert_allclose(c.state.shown[0].code, both, atol=1e-5)
-    np.testing.assert_allclose(c.state.shown[0].motion.joints, decoded(g, both, action), atol=1e-5)
+    # codes summed in another order differ in their last float32 bits: the same motion within 0.1 mm
+    np.testing.assert_allclose(c.state.shown[0].motion.joints, decoded(g, both, action), atol=1e-4)
 
     # a burst of slider moves: the last one plays
     for value in (5, 10, 20, 25, -30):
@@ -79,7 +80,7 @@ def test_the_energy_slider_plays_the_engines_edit_of_the_clicked_code(
     last = code + sum(
         a * directions[n].scale * directions[n].normal for n, a in ((style, -1.0), ("energy", -3.0))
     )
-    np.testing.assert_allclose(c.state.shown[0].motion.joints, decoded(g, last, action), atol=1e-5)
+    np.testing.assert_allclose(c.state.shown[0].motion.joints, decoded(g, last, action), atol=1e-4)
 
     with qtbot.waitSignal(c.shownChanged, timeout=30_000):
         panel.edit_reset.click()
