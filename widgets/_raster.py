@@ -74,11 +74,13 @@ def discs(xy: np.ndarray, rgba: np.ndarray, grid: Grid, diameter: float) -> np.n
     wide = w + 2 * pad
     centre = (row[rows] + pad) * wide + (col[rows] + pad)
     # One point per centre pixel (the last row: it is drawn on top), so that within one disc offset no
-    # two points write the same pixel and a gather-max-scatter keeps the topmost row exactly.
-    _, last = np.unique(centre[::-1], return_index=True)
-    keep = len(centre) - 1 - last
-    centre, order = centre[keep], keep.astype(np.int32)
+    # two points write the same pixel and a gather-max-scatter keeps the topmost row exactly. The
+    # centres' maxima stay on the canvas: the disc's own centre offset would write them again.
+    order = np.arange(len(centre), dtype=np.int32)
     top = np.full((h + 2 * pad) * wide, -1, dtype=np.int32)
+    np.maximum.at(top, centre, order)
+    keep = np.flatnonzero(top[centre] == order)
+    centre, order = centre[keep], order[keep]
     for offset in (dr * wide + dc).tolist():
         flat = centre + offset
         top[flat] = np.maximum(top[flat], order)
