@@ -254,6 +254,10 @@ def _reduced_precision(repeats: int) -> list[dict[str, object]]:
     rounded_models = {fmt: rounded_weights(model, fmt) for fmt in ROUNDINGS}
     native = "" if native_bfloat16("cpu") else " (no bfloat16 instructions)"
     half = "" if torch.ops.mkldnn._is_mkldnn_fp16_supported() else " (no float16 instructions)"
+    autocasts = {
+        f"bundled model decode, bfloat16 autocast{native}": lambda: bfloat16_autocast("cpu"),
+        f"bundled model decode, float16 autocast{half}": lambda: torch.autocast("cpu", torch.float16),
+    }
     engine = torch.backends.quantized.engine
     int8 = f"bundled model, the paper's modules int8 (quantize_dynamic, {engine}; vs them in float32)"
     rows: list[dict[str, object]] = []
@@ -267,19 +271,13 @@ def _reduced_precision(repeats: int) -> list[dict[str, object]]:
             plain = _timed(lambda z=z, a=a, e=e: plain_decode(model, z, a, e), n)
             reduced = model.projection(plain_decode(quantized, z, a, e))
             i8 = _timed(lambda z=z, a=a, e=e: plain_decode(quantized, z, a, e), n)
-            autocast = {}
-            for name, dtype in (("bfloat16", torch.bfloat16), ("float16", torch.float16)):
-                with bfloat16_autocast("cpu") if dtype == torch.bfloat16 else torch.autocast("cpu", dtype):
+            for what, autocast in autocasts.items():
+                with autocast():
                     joints = model.decode(z, a, e)[0].float()
-                    autocast[name] = (joints, _timed(lambda z=z, a=a, e=e: model.decode(z, a, e), n))
+                    seconds = _timed(lambda z=z, a=a, e=e: model.decode(z, a, e), n)
+                rows.append(_precision_row(what, batch, seconds, f32, joints - exact))
             rounded = {fmt: r.decode(z, a, e)[0] for fmt, r in rounded_models.items()}
-        rows += [
-            _precision_row(f"bundled model decode, bfloat16 autocast{native}", batch,
-                           autocast["bfloat16"][1], f32, autocast["bfloat16"][0] - exact),
-            _precision_row(f"bundled model decode, float16 autocast{half}", batch,
-                           autocast["float16"][1], f32, autocast["float16"][0] - exact),
-            _precision_row(int8, batch, i8, plain, reduced - exact),
-        ]  # fmt: skip
+        rows.append(_precision_row(int8, batch, i8, plain, reduced - exact))
         rows += [
             {
                 "what": f"bundled model decode, {fmt}-rounded weights in float32 ({fmt}'s best accuracy)",
