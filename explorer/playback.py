@@ -52,6 +52,11 @@ class Playback:
         if not shown:  # nothing to play (e.g. another model opened): the old motions stop with it
             self.played, self.rig = [], None
             w.timeline.pause()
+            if w.has_viewport():  # and their root path, ghosts, end marker and labels go
+                w.viewport.set_trajectory(None)
+                w.viewport.set_ghosts(None)
+                w.viewport.set_end_marker(None)
+                w.viewport.set_labels(None)
             return
         loaded = self.c.generator
         scene = build_scene(shown, self.c.state.layout, loaded.root_height, loaded.label_names)

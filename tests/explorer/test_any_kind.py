@@ -135,6 +135,9 @@ def test_opening_another_model_forgets_the_codes_encoded_by_the_last(
         c.loader.open_model(tiny_a2m_dir)  # its codes are 6-d, the ODMO model's 20-d
     assert errors == [] and c.generator.kind == "a2m"
     assert c.state.extra is None and not window.latent_map._paths and c.state.shown == ()
+    viewport = window.viewport  # nothing of the old motions is drawn: no root path, ghosts, end or label
+    assert viewport._trajectory_actor is None and viewport._ghost_actor is None
+    assert not viewport._end_actor.GetVisibility() and viewport.labels() == []
     with qtbot.waitSignal(c.shownChanged, timeout=30_000):
         click_map(qtbot, opened, c.state.embedding[isolated_points(c.state.embedding, 1)[0]])
     assert c.state.shown[0].motion.n_joints == c.generator.skeleton.n_joints
